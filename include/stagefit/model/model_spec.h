@@ -1,0 +1,112 @@
+#pragma once
+// The model description: plain data, as read from a model file (TOML) or built in code. Validate it
+// with ValidateModel(); AssembledModel::Assemble() turns it into the immutable linearised model.
+//
+// Every quantity is SI and every position and axis is in the world frame W at rest (SPEC §1).
+
+#include <Eigen/Core>
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "stagefit/common/dof.h"
+
+namespace stagefit::model {
+
+/// The name of the implicit ground body: its translations are the ground-motion inputs.
+inline constexpr const char* kGroundName = "ground";
+
+/// A rigid body.
+struct BodySpec {
+  std::string name;
+  double mass_kg = 0.0;
+  Eigen::Vector3d com_W = Eigen::Vector3d::Zero();             ///< centre of mass in W at rest, m
+  Eigen::Matrix3d inertia_com_W = Eigen::Matrix3d::Zero();     ///< about the CoM, along W, kg m^2
+  std::string note;                                            ///< provenance of the numbers
+};
+
+/// An off-diagonal stiffness/damping term between two DoF of a joint: adds k to K(a,b) and K(b,a).
+/// Units: N/m between translations, Nm/rad between rotations, N/rad (= Nm/m) between the two kinds.
+struct CouplingSpec {
+  Dof a = Dof::kDx;
+  Dof b = Dof::kDy;
+  double stiffness = 0.0;
+  double damping = 0.0;
+};
+
+/// A 6-DoF spring/damper joint between a parent and a child body. Its relative motion delta is the
+/// child's motion minus the parent's, both taken at the joint origin, in joint axes; its energy is
+/// 0.5 delta' K delta with K = diag(stiffness) + couplings (SPEC §2). An imposed DoF is a constraint
+/// (delta_i = 0, the stage's controlled motion) and carries no stiffness.
+struct JointSpec {
+  std::string name;
+  std::string parent;
+  std::string child;
+  Eigen::Vector3d origin_W = Eigen::Vector3d::Zero();           ///< m
+  Eigen::Matrix3d R_WJ = Eigen::Matrix3d::Identity();           ///< joint axes in W
+  std::array<double, 6> stiffness{};     ///< N/m (Dx..Dz), Nm/rad (Rx..Rz)
+  std::array<double, 6> damping{};       ///< N s/m, Nm s/rad
+  std::array<double, 6> loss_factor{};   ///< hysteretic loss factor eta (dimensionless), 0 = none
+  std::array<bool, 6> imposed{};         ///< true = controlled DoF, removed from the free DoF
+  std::vector<CouplingSpec> couplings;
+  double spin_rate_rad_s = 0.0;          ///< the child's subtree spins about the joint z axis
+  std::string note;
+};
+
+/// A named frame fixed to a body (e.g. the compliance frame {X}).
+struct FrameSpec {
+  std::string name;
+  std::string body;
+  Eigen::Vector3d origin_W = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R_WF = Eigen::Matrix3d::Identity();
+};
+
+/// A sensor or an excitation point on a body: position and unit direction in W.
+struct PointSpec {
+  std::string name;
+  std::string body;
+  Eigen::Vector3d position_W = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction_W = Eigen::Vector3d::UnitX();
+};
+
+/// One step of the compare -> diagnose -> fit loop, kept with a tuned model.
+struct HistoryEntry {
+  std::string step;     ///< e.g. "fit", "fit --with payload@hexapod"
+  double error = 0.0;   ///< SPEC §4 error scalar after the step
+  std::string detail;
+};
+
+struct ModelSpec {
+  std::string name;
+  std::string description;
+  std::vector<BodySpec> bodies;
+  std::vector<JointSpec> joints;
+  std::vector<FrameSpec> frames;
+  std::vector<PointSpec> sensors;
+  std::vector<PointSpec> excitations;
+  std::array<bool, 3> ground_inputs{true, true, true};  ///< which ground translations are inputs
+  std::string compliance_frame = "X";
+  double acquisition_delay_s = 0.0;                     ///< pure delay on every output
+  std::vector<std::string> effects;                     ///< catalogued effects applied, in order
+  std::vector<HistoryEntry> history;
+};
+
+/// Every problem of `spec` at once, each naming the item, field, value and what was expected.
+/// Empty when the model is valid. Checks: unique non-empty names; positive finite mass; symmetric
+/// positive-definite inertia satisfying the triangle inequality; finite, non-negative stiffness,
+/// damping and loss factors; unit rotation matrices; known parent/child bodies; every body the child
+/// of exactly one joint (a tree rooted at the ground: no loops, nothing disconnected); frames, sensors
+/// and excitations on known bodies with unit directions; couplings between distinct free DoF keeping
+/// the joint stiffness positive semi-definite.
+std::vector<std::string> ValidateModel(const ModelSpec& spec);
+
+/// Throws InputError listing every problem of ValidateModel(), prefixed with `source` (file name).
+void CheckModel(const ModelSpec& spec, const std::string& source);
+
+/// Index of a body by name, or -1 (also for the ground).
+int FindBody(const ModelSpec& spec, const std::string& name);
+int FindJoint(const ModelSpec& spec, const std::string& name);
+int FindFrame(const ModelSpec& spec, const std::string& name);
+
+}  // namespace stagefit::model

@@ -1,0 +1,48 @@
+#include <iostream>
+
+#include "command.h"
+#include "stagefit/common/error.h"
+
+namespace stagefit::cli {
+
+int& ExitCode() {
+  static int code = kExitOk;
+  return code;
+}
+
+}  // namespace stagefit::cli
+
+int main(int argc, char** argv) {
+  using namespace stagefit::cli;
+  CLI::App app{"stagefit: models of precision positioning stages, tuned against vibration measurements"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "stagefit 0.1.0");
+
+  // The table of subcommands.
+  RegisterModelCommand(app);
+  RegisterPoseCommand(app);
+  RegisterExportCommand(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? kExitOk : kExitUsage;
+  } catch (const stagefit::UsageError& e) {
+    std::cerr << "stagefit: usage error: " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const stagefit::InputError& e) {
+    std::cerr << "stagefit: error: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const stagefit::NumericalError& e) {
+    std::cerr << "stagefit: numerical failure: " << e.what() << "\n";
+    return kExitNumerics;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "stagefit: error: out of memory (an input declares sizes too large to hold)\n";
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "stagefit: internal error: " << e.what() << "\n";
+    return 4;
+  }
+  return ExitCode();
+}

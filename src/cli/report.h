@@ -1,0 +1,23 @@
+#pragma once
+// Helpers shared by the subcommands: model loading, JSON reports.
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "command.h"
+#include "stagefit/model/model_spec.h"
+
+namespace stagefit::cli {
+
+/// The model of --model (or the embedded default).
+model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
+
+/// "<embedded micro-station>" or the --model path, for messages.
+std::string ModelSource(const CommonOptions& options);
+
+/// Writes `report` as indented JSON, atomically, refusing to overwrite any of `inputs`.
+void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs);
+
+}  // namespace stagefit::cli

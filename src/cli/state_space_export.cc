@@ -1,0 +1,68 @@
+#include "state_space_export.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "stagefit/common/atomic_file.h"
+#include "stagefit/common/error.h"
+
+namespace stagefit::cli {
+namespace {
+
+std::string MatrixCsv(const Eigen::MatrixXd& m, const std::vector<std::string>& rows,
+                      const std::vector<std::string>& cols) {
+  std::ostringstream out;
+  out << "name";
+  for (const auto& c : cols) out << "," << c;
+  out << "\n";
+  char buffer[40];
+  for (int r = 0; r < m.rows(); ++r) {
+    out << rows[r];
+    for (int c = 0; c < m.cols(); ++c) {
+      std::snprintf(buffer, sizeof buffer, ",%.17g", m(r, c));
+      out << buffer;
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace
+
+std::vector<std::string> WriteStateSpaceCsv(const std::string& out, const model::StateSpace& ss,
+                                            const model::SecondOrderSystem& sys) {
+  std::filesystem::path stem(out);
+  if (stem.extension() == ".csv") stem.replace_extension();
+  struct Item {
+    const char* suffix;
+    const Eigen::MatrixXd* m;
+    const std::vector<std::string>* rows;
+    const std::vector<std::string>* cols;
+  };
+  const Item items[] = {{"A", &ss.A, &ss.state_names, &ss.state_names},
+                        {"B", &ss.B, &ss.state_names, &ss.input_names},
+                        {"C", &ss.C, &ss.output_names, &ss.state_names},
+                        {"D", &ss.D, &ss.output_names, &ss.input_names},
+                        {"M", &sys.M, &sys.dof_names, &sys.dof_names},
+                        {"C_damping", &sys.C, &sys.dof_names, &sys.dof_names},
+                        {"K", &sys.K, &sys.dof_names, &sys.dof_names}};
+  std::vector<std::string> written;
+  for (const auto& item : items) {
+    std::string path = stem.string() + "_" + item.suffix + ".csv";
+    WriteFileAtomically(path, MatrixCsv(*item.m, *item.rows, *item.cols));
+    written.push_back(path);
+  }
+  return written;
+}
+
+std::vector<std::string> WriteStateSpaceMat(const std::string& out, const model::StateSpace& ss,
+                                            const model::SecondOrderSystem& sys);
+
+std::vector<std::string> WriteStateSpace(const std::string& out, const model::StateSpace& ss,
+                                         const model::SecondOrderSystem& sys) {
+  if (std::filesystem::path(out).extension() == ".mat") return WriteStateSpaceMat(out, ss, sys);
+  return WriteStateSpaceCsv(out, ss, sys);
+}
+
+}  // namespace stagefit::cli
