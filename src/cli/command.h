@@ -37,5 +37,7 @@ bool StderrIsTerminal();
 void RegisterModelCommand(CLI::App& app);
 void RegisterPoseCommand(CLI::App& app);
 void RegisterExportCommand(CLI::App& app);
+void RegisterDisturbanceCommand(CLI::App& app);
+void RegisterEstimateCommand(CLI::App& app);
 
 }  // namespace stagefit::cli

@@ -22,6 +22,8 @@ int main(int argc, char** argv) {
   RegisterModelCommand(app);
   RegisterPoseCommand(app);
   RegisterExportCommand(app);
+  RegisterDisturbanceCommand(app);
+  RegisterEstimateCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -158,11 +158,16 @@ Matrix6d AssembledModel::JointDamping(int j) const {
 }
 
 Matrix6d AssembledModel::JointLossStiffness(int j) const {
-  // K_loss_J = H K_J H with H = diag(sqrt(eta)): each DoF's own term is eta_i k_i; a coupling term
-  // gets the geometric mean of its two loss factors.
-  Eigen::Matrix<double, 6, 1> h;
-  for (int i = 0; i < 6; ++i) h(i) = std::sqrt(spec_.joints[j].loss_factor[i]);
-  return h.asDiagonal() * JointStiffness(j) * h.asDiagonal();
+  // Each DoF's own term is eta_i k_i; a coupling term k_ab gets the mean loss factor (eta_a + eta_b) / 2.
+  const JointSpec& joint = spec_.joints[j];
+  Matrix6d K = Matrix6d::Zero();
+  for (int i = 0; i < 6; ++i) K(i, i) = joint.imposed[i] ? 0.0 : joint.loss_factor[i] * joint.stiffness[i];
+  for (const auto& c : joint.couplings) {
+    const double eta = 0.5 * (joint.loss_factor[index(c.a)] + joint.loss_factor[index(c.b)]);
+    K(index(c.a), index(c.b)) += eta * c.stiffness;
+    K(index(c.b), index(c.a)) += eta * c.stiffness;
+  }
+  return K;
 }
 
 std::vector<int> AssembledModel::Subtree(int joint_index) const {

@@ -44,7 +44,8 @@ bool IsMatV73Supported();
 void WriteMatFile(const std::filesystem::path& path, const std::vector<MatVariable>& variables,
                   MatVersion version = MatVersion::kV5);
 
-/// Reads every top-level variable of a v5 (compressed or not) or v7.3 file, in file order.
+/// Reads every top-level variable of a v5 (compressed or not) or v7.3 file, in file order (v7.3:
+/// in HDF5's order, which is by name).
 /// Numeric classes (double, single, integers, logical) become MatrixXd / MatrixXcd; a 1 x n (or
 /// empty) char array becomes a string; a char matrix with several rows becomes a list of its rows
 /// (trailing blanks removed); a cell array whose elements are all char becomes a list of strings.

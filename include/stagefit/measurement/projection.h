@@ -1,0 +1,145 @@
+#pragma once
+// Projection of raw hammer-test FRFs (accelerometer channels x hammer impacts) onto the six rigid-body
+// degrees of freedom of a frame, with the Jacobians of SPEC §2, conversion between accelerance,
+// mobility and receptance, and a rigid-body consistency indicator.
+//
+// Notation: W world frame, X the frame projected to (the compliance frame {X}, or a body's centre of
+// mass), S a sensor, E an impact (excitation). p_WXo is the origin of X in W; r = p_WS - p_WXo.
+// DoF order Dx Dy Dz Rx Ry Rz; wrench order Fx Fy Fz Mx My Mz.
+//
+// Sensor Jacobian J_a (Nout x 6). A sensor at r measuring along the unit vector n sees the
+// acceleration of a point of a rigid body, a_S = a_X + alpha x r, so its row is
+//     J_a(i, :) = n' [I, -[r]x] = [n', (r x n)'],
+// and a_L = J_a [a_X; alpha_X].
+// Impact Jacobian J_F (Nin x 6). An impact at r along n with force f_i applies at X the wrench
+// [n; r x n] f_i, so its row is J_F(i, :) = [n', (r x n)'] and F_X = J_F' F_L.
+// With H_L = J_a H_X J_F' the rigid-body FRFs are recovered by least squares:
+//     H_X = pinv(J_a) H_L pinv(J_F').
+// For the SPEC §2 geometry these are the seed's equations (2.1) and (2.3).
+
+#include <Eigen/Core>
+
+#include <complex>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "stagefit/measurement/frf_data.h"
+
+namespace stagefit::measurement {
+
+/// Relative singular-value threshold below which a Jacobian direction counts as unobservable: a
+/// singular value sigma_i < kObservabilityTolerance * sigma_max is treated as zero. 1e-6 keeps
+/// geometries that are merely badly conditioned (condition number up to 1e6, i.e. a 1 m lever
+/// against 1 um of placement precision) and rejects exactly degenerate ones.
+inline constexpr double kObservabilityTolerance = 1e-6;
+
+/// J_a (channels.size() x 6) of sensors relative to the origin p_WXo (m, in W): row i is
+/// [n_i', (r_i x n_i)'] with r_i = channels[i].position_W - p_WXo and n_i = channels[i].direction_W.
+/// Throws InputError when a channel has no geometry (empty body) or a direction that is not a unit
+/// vector (tolerance 1e-6).
+Eigen::MatrixXd CalcSensorJacobian(const std::vector<ChannelGeometry>& channels,
+                                   const Eigen::Vector3d& p_WXo);
+
+/// J_F (channels.size() x 6) of impacts relative to p_WXo (m, in W): row i is [n_i', (r_i x n_i)'],
+/// so that the wrench at X is F_X = J_F' F_L. Same checks as CalcSensorJacobian().
+Eigen::MatrixXd CalcImpactJacobian(const std::vector<ChannelGeometry>& channels,
+                                   const Eigen::Vector3d& p_WXo);
+
+/// Checks that a Jacobian J (N x 6) observes all six DoF (rank 6 by the SVD, with
+/// kObservabilityTolerance). Otherwise throws InputError "<what>: the geometry cannot observe
+/// <DoF list> (...)", naming the DoFs that dominate the null space: for an orthonormal null-space
+/// basis V0 (6 x r), DoF k is named when (V0 V0')(k, k) > 0.1, with its share printed, e.g.
+/// "Dx (1.00), Dy (1.00), Rz (1.00)". `what` names the data and side (e.g. "'m.mat': sensors").
+void CheckObservable(const Eigen::MatrixXd& J, const std::string& what);
+
+/// Moore-Penrose pseudo-inverse by the SVD (singular values below kObservabilityTolerance *
+/// sigma_max are dropped).
+Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& J);
+
+/// Projects raw FRFs to the 6 DoF of the frame {X} at every frequency:
+///     H_X(f) = pinv(J_a) H_L(f) pinv(J_F'),
+/// with J_a and J_F built about p_WXo = raw.frame_origin_W if the data gives it, else
+/// `default_p_WXo` (m, in W; usually the model's {X} origin). Result: Nf matrices 6 x 6, outputs
+/// named Dx Dy Dz Rx Ry Rz, inputs Fx Fy Fz Mx My Mz, both at p_WXo with the W axes as directions
+/// (rotations: the axis about which they turn); same frequencies and quantity as `raw`; no coherence
+/// (it does not carry through a least-squares combination); frame_origin_W = p_WXo.
+/// Throws InputError when a channel lacks geometry, when the sensors (or impacts) are on more than
+/// one body (use ProjectPerBody()) or when J_a or J_F cannot observe all 6 DoF (the message names the
+/// unobservable DoF).
+FrfData ProjectToFrame(const FrfData& raw, const Eigen::Vector3d& default_p_WXo);
+
+/// What ProjectPerBody() does with the inputs.
+enum class InputProjection {
+  kRaw,      ///< keep the raw impacts as inputs
+  kBodyCom,  ///< project the impacts on each body to that body's wrench at its centre of mass
+};
+
+/// Projects per body (SPEC §3, sensors on several bodies): the sensors on body b give J_a,b about
+/// that body's centre of mass p_WBcm[b] (m, in W), and the outputs become the 6 DoF of each body, in
+/// the order in which the bodies first appear among the outputs, named "<body>.Dx" ... "<body>.Rz".
+/// With InputProjection::kBodyCom the impacts are treated the same way (inputs "<body>.Fx" ...
+/// "<body>.Mz"), otherwise the inputs are the raw impacts. Per block of bodies (b, c):
+///     H_bc(f) = pinv(J_a,b) H_L[rows of b, cols of c](f) pinv(J_F,c')   (pinv(J_F,c') = I if raw).
+/// Throws InputError when a channel lacks geometry, a body has no entry in p_WBcm, or a body's
+/// sensors (impacts) cannot observe its 6 DoF (the message names the body and the DoF).
+FrfData ProjectPerBody(const FrfData& raw, const std::map<std::string, Eigen::Vector3d>& p_WBcm,
+                       InputProjection inputs = InputProjection::kRaw);
+
+/// Power k such that H_quantity = (j*omega)^k * H_receptance: receptance 0, mobility 1,
+/// accelerance 2.
+int DifferentiationOrder(FrfQuantity quantity);
+
+/// Factor (j*2*pi*f)^(order(to) - order(from)) that converts an FRF at frequency_hz (Hz, > 0) from
+/// one quantity to another, e.g. accelerance -> receptance: 1/(j*omega)^2 = -1/omega^2.
+std::complex<double> ConversionFactor(double frequency_hz, FrfQuantity from, FrfQuantity to);
+
+/// Returns `data` converted to `to` (every FRF multiplied by ConversionFactor()); coherence and
+/// geometry unchanged. Throws InputError when a frequency is not > 0.
+FrfData ConvertQuantity(const FrfData& data, FrfQuantity to);
+
+/// A frequency band [low_hz, high_hz), Hz.
+struct FrequencyBand {
+  double low_hz = 0.0;
+  double high_hz = 0.0;
+  double centre_hz() const;  ///< geometric centre sqrt(low * high)
+};
+
+/// Fractional-octave bands (bands_per_octave = 1: octaves, 3: third octaves) with centres
+/// 1000 * 2^(k / bands_per_octave) Hz and edges at centre * 2^(+-1/(2 bands_per_octave)), every band
+/// that overlaps [min_hz, max_hz], in increasing order. Throws InputError when 0 < min_hz <= max_hz
+/// does not hold or bands_per_octave < 1.
+std::vector<FrequencyBand> MakeFractionalOctaveBands(double min_hz, double max_hz,
+                                                     int bands_per_octave);
+
+/// How well a rigid body explains raw data, per channel and band (see CalcRigidConsistency()).
+struct RigidConsistency {
+  std::vector<FrequencyBand> bands;        ///< Nb bands (only bands holding frequencies)
+  std::vector<std::string> output_names;   ///< Nout
+  std::vector<std::string> input_names;    ///< Nin
+  /// Nout x Nb: share of output channel i's energy in band b that no rigid motion of {X} explains,
+  /// sum_{f in b, j} |R_out(i, j)|^2 / sum_{f in b, j} |H_L(i, j)|^2, R_out = (I - J_a pinv(J_a)) H_L.
+  Eigen::MatrixXd output_residual_share;
+  /// Nin x Nb: the same for input channel j, R_in = H_L (I - J_F pinv(J_F)).
+  Eigen::MatrixXd input_residual_share;
+  Eigen::VectorXd output_overall;  ///< Nb: ||R_out||_F^2 / ||H_L||_F^2 summed over the band
+  Eigen::VectorXd input_overall;   ///< Nb: ||R_in||_F^2 / ||H_L||_F^2 summed over the band
+
+  /// A table: one line per band with the overall shares and the worst output and input channel.
+  std::string BriefReport() const;
+};
+
+/// Rigid-body consistency indicator of raw FRFs about {X} (origin as in ProjectToFrame()): the share
+/// of the data energy that the rigid projection cannot explain, per output channel, per input
+/// channel and overall, aggregated over `bands` (empty: third-octave bands over the data range). A
+/// share near 0 means the channels move as one rigid body in that band; a local mode, a flexible
+/// mount or a wrong sensor direction raises the share of the channels concerned. Shares are 0 for a
+/// band whose data energy is 0. A residual is shared by the channels that observe the same DoF:
+/// with the SPEC §2 layout, the 8 in-plane channels observe Dx Dy Rz with 5 redundant channels, so a
+/// defect on one of them shows mostly on that channel; the 4 vertical channels observe Dz Rx Ry with
+/// a single redundancy, so a defect on one of them shows on all four. Throws InputError as
+/// ProjectToFrame() does.
+RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
+                                      const std::vector<FrequencyBand>& bands = {});
+
+}  // namespace stagefit::measurement

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Sets up, builds and runs the whole test suite (unit, integration and CLI tests) with CTest.
+# Usage: bash scripts/test.sh            (release build in ./build)
+#        bash scripts/test.sh --sanitize (AddressSanitizer + UBSan build in ./build-asan)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ "${1:-}" = "--sanitize" ]; then
+  STAGEFIT_BUILD_DIR=build-asan bash scripts/setup.sh -DSTAGEFIT_SANITIZE=ON -DSTAGEFIT_BUILD_BENCHMARKS=OFF
+  cd build-asan
+else
+  bash scripts/setup.sh
+  cd build
+fi
+ctest --output-on-failure -j"$(nproc)" --timeout 600

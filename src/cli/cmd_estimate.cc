@@ -1,0 +1,141 @@
+// `stagefit estimate RAW --out OUT`: FRFs (H1 or H2) with coherence from raw hammer time data
+// (layout: measurements/README.md, "Raw hammer time data"), written as a measurement file.
+
+#include <cstdio>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "command.h"
+#include "report.h"
+#include "stagefit/common/atomic_file.h"
+#include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
+#include "stagefit/measurement/hammer_estimation.h"
+#include "stagefit/measurement/measurement_file.h"
+#include "stagefit/measurement/raw_hammer_file.h"
+
+namespace stagefit::cli {
+namespace {
+
+namespace sm = stagefit::measurement;
+
+struct EstimateFlags {
+  CommonOptions common;
+  std::string raw;
+  std::string out;
+  std::string force_window;
+  std::string exp_tau;
+  std::string min_frequency;
+  std::string max_frequency;
+  std::string estimator = "h1";
+  bool exclude_flagged = false;
+  bool no_force_window = false;
+};
+
+nlohmann::json HitJson(const sm::HitDiagnostics& d, const sm::RawHammerData& data) {
+  nlohmann::json outputs = nlohmann::json::array();
+  for (int i : d.overloaded_outputs) outputs.push_back(data.outputs[i].name);
+  return {{"input", data.inputs[d.input].name},
+          {"input_number", d.input + 1},
+          {"hit", d.hit + 1},
+          {"peak_force_n", d.peak_force_n},
+          {"impact_time_s", d.impact_time_s},
+          {"pulse_width_s", d.pulse_width_s},
+          {"double_hit", d.double_hit},
+          {"second_peak_ratio", d.second_peak_ratio},
+          {"force_overload", d.force_overload},
+          {"overloaded_outputs", outputs},
+          {"hit_coherence", d.hit_coherence},
+          {"poor_coherence", d.poor_coherence},
+          {"flagged", d.flagged()},
+          {"rejected", d.rejected},
+          {"messages", d.messages}};
+}
+
+void RunEstimate(const EstimateFlags& f) {
+  CheckNotAnInput(f.out, {f.raw});
+  if (!f.common.report_path.empty()) CheckNotAnInput(f.common.report_path, {f.raw, f.out});
+  // Fail on a bad --out extension before the work.
+  sm::MeasurementFormatOf(f.out);
+
+  sm::EstimationOptions options;
+  options.estimator = f.estimator == "h2" ? sm::FrfEstimator::kH2 : sm::FrfEstimator::kH1;
+  options.apply_force_window = !f.no_force_window;
+  if (!f.force_window.empty()) {
+    options.force_window_s = ParseQuantity(f.force_window, dim::kTime, "--force-window");
+  }
+  if (!f.exp_tau.empty()) options.exp_tau_s = ParseQuantity(f.exp_tau, dim::kTime, "--exp-tau");
+  if (!f.min_frequency.empty()) {
+    options.min_frequency_hz = ParseQuantity(f.min_frequency, dim::kFrequency, "--min-frequency");
+  }
+  if (!f.max_frequency.empty()) {
+    options.max_frequency_hz = ParseQuantity(f.max_frequency, dim::kFrequency, "--max-frequency");
+  }
+  options.exclude_flagged = f.exclude_flagged;
+
+  const sm::RawHammerData data = sm::ReadRawHammerFile(f.raw);
+  const sm::EstimationSummary summary = sm::EstimateFrf(data, options);
+  sm::WriteMeasurement(f.out, summary.frf);
+  std::fputs(summary.BriefReport().c_str(), stdout);
+  std::printf("wrote %s\n", f.out.c_str());
+
+  if (!f.common.report_path.empty()) {
+    nlohmann::json hits = nlohmann::json::array();
+    int flagged = 0;
+    for (const sm::HitDiagnostics& d : summary.hits) {
+      hits.push_back(HitJson(d, data));
+      flagged += d.flagged() ? 1 : 0;
+    }
+    nlohmann::json report = {
+        // No model is compared with the measurement here, so there is no error scalar.
+        {"error", nullptr},
+        {"raw", f.raw},
+        {"out", f.out},
+        {"estimator", f.estimator},
+        {"quantity", sm::ToString(summary.frf.quantity)},
+        {"num_outputs", summary.frf.num_outputs()},
+        {"num_inputs", summary.frf.num_inputs()},
+        {"num_frequencies", summary.frf.num_frequencies()},
+        {"frequency_resolution_hz", summary.frequency_resolution_hz},
+        {"exp_tau_s", options.exp_tau_s},
+        {"added_decay_rate_1_s", summary.added_decay_rate_1_s},
+        {"hits_used", summary.hits_used},
+        {"num_flagged", flagged},
+        {"num_rejected", summary.rejected_hits.size()},
+        {"hits", hits},
+        {"warnings", summary.warnings}};
+    WriteReport(f.common.report_path, report, {f.raw, f.out});
+  }
+}
+
+}  // namespace
+
+void RegisterEstimateCommand(CLI::App& app) {
+  auto* command = app.add_subcommand(
+      "estimate",
+      "FRFs (H1 or H2) with coherence from raw hammer time data (.mat, layout in "
+      "measurements/README.md); flags double hits, overloads and incoherent hits");
+  auto f = std::make_shared<EstimateFlags>();
+  AddCommonOptions(*command, f->common);
+  command->add_option("RAW", f->raw, "raw hammer time data (.mat)")->required();
+  command->add_option("--out", f->out, "measurement file to write: OUT.mat, OUT.csv or OUT.uff")
+      ->required();
+  command->add_option("--force-window", f->force_window,
+                      "flat length of the force window after the impact (e.g. \"10 ms\"); default: "
+                      "3 pulse widths");
+  command->add_flag("--no-force-window", f->no_force_window, "do not window the force record");
+  command->add_option("--exp-tau", f->exp_tau,
+                      "time constant of the exponential response window (e.g. \"0.5 s\"); adds a "
+                      "damping ratio 1/(tau omega_n), reported; default: none");
+  command->add_option("--min-frequency", f->min_frequency, "lowest frequency written (default: df)");
+  command->add_option("--max-frequency", f->max_frequency,
+                      "highest frequency written (default: Nyquist)");
+  command->add_option("--estimator", f->estimator, "h1 (default, noise on the response) or h2")
+      ->check(CLI::IsMember({"h1", "h2"}));
+  command->add_flag("--exclude-flagged", f->exclude_flagged,
+                    "leave flagged hits (double hit, overload, poor coherence) out of the averages");
+  command->callback([f] { RunEstimate(*f); });
+}
+
+}  // namespace stagefit::cli

@@ -1,0 +1,402 @@
+#include "stagefit/measurement/projection.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+
+#include "stagefit/common/dof.h"
+#include "stagefit/common/error.h"
+
+namespace stagefit::measurement {
+namespace {
+
+constexpr double kDirectionTolerance = 1e-6;
+constexpr double kNullSpaceShareToName = 0.1;
+constexpr double kPi = 3.14159265358979323846;
+
+std::string Where(const FrfData& data) {
+  return data.source.empty() ? std::string("measurement") : "'" + data.source + "'";
+}
+
+Eigen::MatrixXd CalcJacobian(const std::vector<ChannelGeometry>& channels,
+                             const Eigen::Vector3d& p_WXo, const char* kind,
+                             const std::string& prefix = "") {
+  Eigen::MatrixXd J(channels.size(), 6);
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    const ChannelGeometry& c = channels[i];
+    if (!c.has_geometry()) {
+      throw InputError(prefix + kind + " '" + c.name +
+                       "': no geometry (body, position, direction), expected it for the projection");
+    }
+    const Eigen::Vector3d& n = c.direction_W;
+    if (!n.allFinite() || std::abs(n.norm() - 1.0) > kDirectionTolerance) {
+      std::ostringstream m;
+      m << prefix << kind << " '" << c.name << "': direction (" << n.transpose()
+        << ") is not a unit vector, expected length 1";
+      throw InputError(m.str());
+    }
+    const Eigen::Vector3d r = c.position_W - p_WXo;
+    J.row(i).head<3>() = n.transpose();
+    J.row(i).tail<3>() = r.cross(n).transpose();
+  }
+  return J;
+}
+
+// Rows (or columns) of `channels` grouped by body, in order of first appearance.
+std::vector<std::pair<std::string, std::vector<int>>> GroupByBody(
+    const std::vector<ChannelGeometry>& channels, const FrfData& data, const char* kind) {
+  std::vector<std::pair<std::string, std::vector<int>>> groups;
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    const ChannelGeometry& c = channels[i];
+    if (!c.has_geometry()) {
+      throw InputError(Where(data) + ": " + kind + " '" + c.name +
+                       "': no geometry (body, position, direction), expected it for the projection");
+    }
+    auto it = std::find_if(groups.begin(), groups.end(),
+                           [&](const auto& g) { return g.first == c.body; });
+    if (it == groups.end()) {
+      groups.push_back({c.body, {}});
+      it = std::prev(groups.end());
+    }
+    it->second.push_back(static_cast<int>(i));
+  }
+  return groups;
+}
+
+void CheckShapes(const FrfData& data) {
+  if (static_cast<int>(data.frf.size()) != data.num_frequencies()) {
+    throw InputError(Where(data) + ": frf: " + std::to_string(data.frf.size()) +
+                     " frequency points, expected " + std::to_string(data.num_frequencies()) +
+                     " (one per freq_hz)");
+  }
+  for (const Eigen::MatrixXcd& H : data.frf) {
+    if (H.rows() != data.num_outputs() || H.cols() != data.num_inputs()) {
+      throw InputError(Where(data) + ": frf: a matrix of " + std::to_string(H.rows()) + " x " +
+                       std::to_string(H.cols()) + ", expected Nout x Nin = " +
+                       std::to_string(data.num_outputs()) + " x " +
+                       std::to_string(data.num_inputs()));
+    }
+  }
+}
+
+std::vector<ChannelGeometry> Subset(const std::vector<ChannelGeometry>& channels,
+                                    const std::vector<int>& rows) {
+  std::vector<ChannelGeometry> out;
+  out.reserve(rows.size());
+  for (int r : rows) out.push_back(channels[r]);
+  return out;
+}
+
+std::vector<ChannelGeometry> RigidChannels(const std::string& body, const Eigen::Vector3d& p_WXo,
+                                           const std::string& prefix, bool wrench) {
+  static const char* kWrenchNames[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+  std::vector<ChannelGeometry> out(6);
+  for (int k = 0; k < 6; ++k) {
+    out[k].name = prefix + (wrench ? std::string(kWrenchNames[k]) : std::string(kDofNames[k]));
+    out[k].body = body;
+    out[k].position_W = p_WXo;
+    out[k].direction_W = Eigen::Vector3d::Unit(k % 3);
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::MatrixXd CalcSensorJacobian(const std::vector<ChannelGeometry>& channels,
+                                   const Eigen::Vector3d& p_WXo) {
+  return CalcJacobian(channels, p_WXo, "sensor");
+}
+
+Eigen::MatrixXd CalcImpactJacobian(const std::vector<ChannelGeometry>& channels,
+                                   const Eigen::Vector3d& p_WXo) {
+  return CalcJacobian(channels, p_WXo, "impact");
+}
+
+void CheckObservable(const Eigen::MatrixXd& J, const std::string& what) {
+  STAGEFIT_ASSERT(J.cols() == 6, "Jacobian with " << J.cols() << " columns, expected 6");
+  std::ostringstream m;
+  if (J.rows() < 6) {
+    m << what << ": " << J.rows() << " channel(s) cannot observe 6 DoF";
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  const double smax = s.size() > 0 ? s(0) : 0.0;
+  std::vector<int> null_columns;
+  for (int k = 0; k < 6; ++k) {
+    const double sk = k < s.size() ? s(k) : 0.0;
+    if (!(sk > kObservabilityTolerance * smax) || smax == 0.0) null_columns.push_back(k);
+  }
+  if (null_columns.empty()) return;
+  Eigen::MatrixXd V0(6, null_columns.size());
+  for (std::size_t c = 0; c < null_columns.size(); ++c) V0.col(c) = svd.matrixV().col(null_columns[c]);
+  const Eigen::VectorXd share = (V0 * V0.transpose()).diagonal();
+  if (m.tellp() == 0) m << what;
+  m << ": the geometry cannot observe ";
+  bool first = true;
+  for (int k = 0; k < 6; ++k) {
+    if (share(k) <= kNullSpaceShareToName) continue;
+    m << (first ? "" : ", ") << kDofNames[k] << " (" << std::fixed << std::setprecision(2)
+      << share(k) << ")";
+    first = false;
+  }
+  m << " (rank " << 6 - null_columns.size()
+    << " of 6; the numbers are each DoF's share of the unobservable motion); expected channels "
+       "that observe all of Dx Dy Dz Rx Ry Rz";
+  throw InputError(m.str());
+}
+
+Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& J) {
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  Eigen::VectorXd inv = Eigen::VectorXd::Zero(s.size());
+  const double smax = s.size() > 0 ? s(0) : 0.0;
+  for (int i = 0; i < s.size(); ++i) {
+    if (s(i) > kObservabilityTolerance * smax) inv(i) = 1.0 / s(i);
+  }
+  return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
+}
+
+FrfData ProjectToFrame(const FrfData& raw, const Eigen::Vector3d& default_p_WXo) {
+  CheckShapes(raw);
+  const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
+  const auto sensor_groups = GroupByBody(raw.outputs, raw, "sensor");
+  const auto impact_groups = GroupByBody(raw.inputs, raw, "impact");
+  if (sensor_groups.size() > 1 || impact_groups.size() > 1) {
+    throw InputError(Where(raw) + ": sensor_body/impact_body: channels on several bodies ('" +
+                     sensor_groups.front().first + "', '" +
+                     (sensor_groups.size() > 1 ? sensor_groups[1].first : impact_groups[1].first) +
+                     "'), expected one body for the projection to {X}; project per body instead");
+  }
+  STAGEFIT_ASSERT(!sensor_groups.empty() && !impact_groups.empty(), "no channels");
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
+  CheckObservable(J_a, Where(raw) + ": sensors");
+  CheckObservable(J_F, Where(raw) + ": impacts");
+  const Eigen::MatrixXcd left = PseudoInverse(J_a).cast<std::complex<double>>();
+  const Eigen::MatrixXcd right =
+      PseudoInverse(J_F.transpose()).cast<std::complex<double>>();
+
+  FrfData out;
+  out.frequency_hz = raw.frequency_hz;
+  out.quantity = raw.quantity;
+  out.outputs = RigidChannels(sensor_groups.front().first, p_WXo, "", false);
+  out.inputs = RigidChannels(impact_groups.front().first, p_WXo, "", true);
+  out.frame_origin_W = p_WXo;
+  out.source = raw.source;
+  out.frf.reserve(raw.frf.size());
+  for (const Eigen::MatrixXcd& H_L : raw.frf) out.frf.push_back(left * H_L * right);
+  return out;
+}
+
+FrfData ProjectPerBody(const FrfData& raw, const std::map<std::string, Eigen::Vector3d>& p_WBcm,
+                       InputProjection inputs) {
+  CheckShapes(raw);
+  const auto sensor_groups = GroupByBody(raw.outputs, raw, "sensor");
+  auto com = [&](const std::string& body) {
+    auto it = p_WBcm.find(body);
+    if (it == p_WBcm.end()) {
+      throw InputError(Where(raw) + ": body '" + body +
+                       "' carries channels but has no centre of mass given, expected one of the "
+                       "model's bodies");
+    }
+    return it->second;
+  };
+
+  FrfData out;
+  out.frequency_hz = raw.frequency_hz;
+  out.quantity = raw.quantity;
+  out.source = raw.source;
+
+  // Left factor: block rows per sensor body.
+  Eigen::MatrixXd left = Eigen::MatrixXd::Zero(6 * sensor_groups.size(), raw.num_outputs());
+  for (std::size_t b = 0; b < sensor_groups.size(); ++b) {
+    const auto& [body, rows] = sensor_groups[b];
+    const Eigen::Vector3d p = com(body);
+    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), p, "sensor", Where(raw) + ": ");
+    CheckObservable(J_a, Where(raw) + ": sensors on body '" + body + "'");
+    const Eigen::MatrixXd pinv = PseudoInverse(J_a);
+    for (std::size_t r = 0; r < rows.size(); ++r) left.block(6 * b, rows[r], 6, 1) = pinv.col(r);
+    const auto channels = RigidChannels(body, p, body + ".", false);
+    out.outputs.insert(out.outputs.end(), channels.begin(), channels.end());
+  }
+
+  Eigen::MatrixXd right;
+  if (inputs == InputProjection::kRaw) {
+    right = Eigen::MatrixXd::Identity(raw.num_inputs(), raw.num_inputs());
+    out.inputs = raw.inputs;
+  } else {
+    const auto impact_groups = GroupByBody(raw.inputs, raw, "impact");
+    right = Eigen::MatrixXd::Zero(raw.num_inputs(), 6 * impact_groups.size());
+    for (std::size_t b = 0; b < impact_groups.size(); ++b) {
+      const auto& [body, cols] = impact_groups[b];
+      const Eigen::Vector3d p = com(body);
+      const Eigen::MatrixXd J_F = CalcJacobian(Subset(raw.inputs, cols), p, "impact", Where(raw) + ": ");
+      CheckObservable(J_F, Where(raw) + ": impacts on body '" + body + "'");
+      const Eigen::MatrixXd pinv_t = PseudoInverse(J_F.transpose());
+      for (std::size_t c = 0; c < cols.size(); ++c) {
+        right.block(cols[c], 6 * b, 1, 6) = pinv_t.row(c);
+      }
+      const auto channels = RigidChannels(body, p, body + ".", true);
+      out.inputs.insert(out.inputs.end(), channels.begin(), channels.end());
+    }
+  }
+  const Eigen::MatrixXcd left_c = left.cast<std::complex<double>>();
+  const Eigen::MatrixXcd right_c = right.cast<std::complex<double>>();
+  out.frf.reserve(raw.frf.size());
+  for (const Eigen::MatrixXcd& H_L : raw.frf) out.frf.push_back(left_c * H_L * right_c);
+  return out;
+}
+
+int DifferentiationOrder(FrfQuantity quantity) {
+  switch (quantity) {
+    case FrfQuantity::kReceptance:
+      return 0;
+    case FrfQuantity::kMobility:
+      return 1;
+    case FrfQuantity::kAccelerance:
+      return 2;
+  }
+  STAGEFIT_ASSERT(false, "unknown FrfQuantity " << static_cast<int>(quantity));
+}
+
+std::complex<double> ConversionFactor(double frequency_hz, FrfQuantity from, FrfQuantity to) {
+  const int k = DifferentiationOrder(to) - DifferentiationOrder(from);
+  const std::complex<double> s(0.0, 2.0 * kPi * frequency_hz);
+  std::complex<double> factor(1.0, 0.0);
+  for (int i = 0; i < std::abs(k); ++i) factor *= s;
+  return k >= 0 ? factor : 1.0 / factor;
+}
+
+FrfData ConvertQuantity(const FrfData& data, FrfQuantity to) {
+  FrfData out = data;
+  out.quantity = to;
+  if (to == data.quantity) return out;
+  for (int f = 0; f < data.num_frequencies(); ++f) {
+    const double fhz = data.frequency_hz(f);
+    if (!(fhz > 0.0) || !std::isfinite(fhz)) {
+      std::ostringstream m;
+      m << Where(data) << ": freq_hz(" << f + 1 << ") = " << fhz
+        << ", expected > 0 to convert " << ToString(data.quantity) << " to " << ToString(to);
+      throw InputError(m.str());
+    }
+    out.frf[f] *= ConversionFactor(fhz, data.quantity, to);
+  }
+  return out;
+}
+
+double FrequencyBand::centre_hz() const { return std::sqrt(low_hz * high_hz); }
+
+std::vector<FrequencyBand> MakeFractionalOctaveBands(double min_hz, double max_hz,
+                                                     int bands_per_octave) {
+  if (!(min_hz > 0.0) || !(max_hz >= min_hz) || !std::isfinite(max_hz)) {
+    std::ostringstream m;
+    m << "frequency bands: range [" << min_hz << ", " << max_hz
+      << "] Hz, expected 0 < min <= max";
+    throw InputError(m.str());
+  }
+  if (bands_per_octave < 1) {
+    throw InputError("frequency bands: " + std::to_string(bands_per_octave) +
+                     " bands per octave, expected >= 1");
+  }
+  const double n = bands_per_octave;
+  const double half = std::pow(2.0, 0.5 / n);
+  const int k_low = static_cast<int>(std::floor(n * std::log2(min_hz / 1000.0)));
+  const int k_high = static_cast<int>(std::ceil(n * std::log2(max_hz / 1000.0)));
+  std::vector<FrequencyBand> bands;
+  for (int k = k_low; k <= k_high; ++k) {
+    const double centre = 1000.0 * std::pow(2.0, k / n);
+    FrequencyBand band{centre / half, centre * half};
+    if (band.high_hz > min_hz && band.low_hz <= max_hz) bands.push_back(band);
+  }
+  return bands;
+}
+
+std::string RigidConsistency::BriefReport() const {
+  std::ostringstream s;
+  s << "Rigid-body consistency (share of the data energy no rigid motion explains)\n";
+  s << "   band Hz            outputs  worst output           inputs   worst input\n";
+  for (std::size_t b = 0; b < bands.size(); ++b) {
+    Eigen::Index io = 0, ii = 0;
+    const double wo = output_residual_share.rows() > 0
+                          ? output_residual_share.col(b).maxCoeff(&io) : 0.0;
+    const double wi = input_residual_share.rows() > 0
+                          ? input_residual_share.col(b).maxCoeff(&ii) : 0.0;
+    s << std::fixed << std::setprecision(1) << std::setw(8) << bands[b].low_hz << "-"
+      << std::left << std::setw(9) << bands[b].high_hz << std::right << std::setprecision(4)
+      << std::setw(9) << output_overall(b) << "  " << std::left << std::setw(10)
+      << (output_names.empty() ? "" : output_names[io]) << std::right << std::setw(8) << wo
+      << "   " << std::setw(8) << input_overall(b) << "  " << std::left << std::setw(10)
+      << (input_names.empty() ? "" : input_names[ii]) << std::right << std::setw(8) << wi
+      << "\n";
+  }
+  return s.str();
+}
+
+RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
+                                      const std::vector<FrequencyBand>& bands) {
+  CheckShapes(raw);
+  const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
+  CheckObservable(J_a, Where(raw) + ": sensors");
+  CheckObservable(J_F, Where(raw) + ": impacts");
+  const int nout = raw.num_outputs();
+  const int nin = raw.num_inputs();
+  const Eigen::MatrixXcd out_residual =
+      (Eigen::MatrixXd::Identity(nout, nout) - J_a * PseudoInverse(J_a))
+          .cast<std::complex<double>>();
+  const Eigen::MatrixXcd in_residual =
+      (Eigen::MatrixXd::Identity(nin, nin) - J_F * PseudoInverse(J_F))
+          .cast<std::complex<double>>();
+
+  RigidConsistency result;
+  for (const auto& c : raw.outputs) result.output_names.push_back(c.name);
+  for (const auto& c : raw.inputs) result.input_names.push_back(c.name);
+  std::vector<FrequencyBand> candidate = bands;
+  if (candidate.empty() && raw.num_frequencies() > 0) {
+    candidate = MakeFractionalOctaveBands(raw.frequency_hz(0),
+                                          raw.frequency_hz(raw.num_frequencies() - 1), 3);
+  }
+  std::vector<Eigen::VectorXd> out_r, out_h, in_r, in_h;
+  for (const FrequencyBand& band : candidate) {
+    Eigen::VectorXd orow = Eigen::VectorXd::Zero(nout), ohrow = Eigen::VectorXd::Zero(nout);
+    Eigen::VectorXd icol = Eigen::VectorXd::Zero(nin), ihcol = Eigen::VectorXd::Zero(nin);
+    int count = 0;
+    for (int f = 0; f < raw.num_frequencies(); ++f) {
+      const double fhz = raw.frequency_hz(f);
+      if (fhz < band.low_hz || fhz >= band.high_hz) continue;
+      ++count;
+      const Eigen::MatrixXcd& H = raw.frf[f];
+      const Eigen::MatrixXd energy = H.cwiseAbs2();
+      orow += (out_residual * H).cwiseAbs2().rowwise().sum();
+      ohrow += energy.rowwise().sum();
+      icol += (H * in_residual).cwiseAbs2().colwise().sum().transpose();
+      ihcol += energy.colwise().sum().transpose();
+    }
+    if (count == 0) continue;
+    result.bands.push_back(band);
+    out_r.push_back(orow);
+    out_h.push_back(ohrow);
+    in_r.push_back(icol);
+    in_h.push_back(ihcol);
+  }
+  const int nb = static_cast<int>(result.bands.size());
+  auto share = [](double r, double h) { return h > 0.0 ? r / h : 0.0; };
+  result.output_residual_share.resize(nout, nb);
+  result.input_residual_share.resize(nin, nb);
+  result.output_overall.resize(nb);
+  result.input_overall.resize(nb);
+  for (int b = 0; b < nb; ++b) {
+    for (int i = 0; i < nout; ++i) result.output_residual_share(i, b) = share(out_r[b](i), out_h[b](i));
+    for (int j = 0; j < nin; ++j) result.input_residual_share(j, b) = share(in_r[b](j), in_h[b](j));
+    result.output_overall(b) = share(out_r[b].sum(), out_h[b].sum());
+    result.input_overall(b) = share(in_r[b].sum(), in_h[b].sum());
+  }
+  return result;
+}
+
+}  // namespace stagefit::measurement
