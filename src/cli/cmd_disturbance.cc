@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <random>
 
@@ -285,12 +286,10 @@ void RunSynth(const SynthFlags& f) {
     out.values.resize(n, static_cast<Eigen::Index>(names.size() + 1));
     out.values.col(0) = Eigen::VectorXd::LinSpaced(n, 0.0, n - 1.0) / options.sample_rate_hz;
     for (size_t c = 0; c < names.size(); ++c) {
-      sd::PsdTable target = PsdColumn(table, "frequency_hz", names[c]);
-      if (ground) {
-        sd::ValidatePsdTable(target);
-        target = sd::ScalePsdTable(target, [&](double fr) { return sd::CalcGeophoneDisplacementGain2(geophone, fr); });
-      }
-      out.values.col(static_cast<Eigen::Index>(c + 1)) = sd::SynthesiseSignal(target, options, rng);
+      const sd::PsdTable target = PsdColumn(table, "frequency_hz", names[c]);
+      std::function<double(double)> gain2;
+      if (ground) gain2 = [&](double fr) { return sd::CalcGeophoneDisplacementGain2(geophone, fr); };
+      out.values.col(static_cast<Eigen::Index>(c + 1)) = sd::SynthesiseSignal(target, options, rng, gain2);
       out.column_names.push_back(ground ? names[c] + "_voltage" : names[c]);
       out.units.push_back(ground ? "V" : "");
     }
@@ -417,7 +416,7 @@ void RegisterDisturbanceCommand(CLI::App& app) {
 
   auto* psd = command->add_subcommand("psd", "Welch PSD of a record (CSV), corrected for its kind");
   auto p = std::make_shared<PsdFlags>();
-  psd->add_option("record", p->record, "record CSV (time_s or position_m first)")->required()->check(CLI::ExistingFile);
+  psd->add_option("record", p->record, "record CSV (time_s or position_m first)")->required();
   psd->add_option("--kind", p->kind, "raw (default), ground-geophone, straightness, spindle");
   psd->add_option("--out", p->out, "PSD CSV to write")->required();
   psd->add_option("--report", p->report, "write a JSON report to this file");
@@ -438,7 +437,7 @@ void RegisterDisturbanceCommand(CLI::App& app) {
   auto* synth = command->add_subcommand("synth", "time signals (or scans) whose PSD is a given PSD");
   auto s = std::make_shared<SynthFlags>();
   synth->add_option("--psd", s->psd, "target PSD CSV (frequency_hz or spatial_frequency_per_m first)")
-      ->required()->check(CLI::ExistingFile);
+      ->required();
   synth->add_option("--out", s->out, "record CSV to write")->required();
   synth->add_option("--as", s->as, "raw (default), ground-geophone, straightness, spindle");
   synth->add_option("--duration", s->duration, "record length (\"60 s\"; default 10 s)");
@@ -466,10 +465,10 @@ void RegisterDisturbanceCommand(CLI::App& app) {
 
   auto* force = command->add_subcommand("force", "force PSD = motion PSD / |sensitivity|^2");
   auto fo = std::make_shared<ForceFlags>();
-  force->add_option("--psd", fo->psd, "motion PSD CSV (frequency_hz first)")->required()->check(CLI::ExistingFile);
+  force->add_option("--psd", fo->psd, "motion PSD CSV (frequency_hz first)")->required();
   force->add_option("--sensitivity", fo->sensitivity,
                     "sensitivity CSV frequency_hz,re,im (motion/force) at the PSD's frequencies")
-      ->required()->check(CLI::ExistingFile);
+      ->required();
   force->add_option("--column", fo->column, "PSD column to use (default: the first)");
   force->add_option("--min-relative", fo->min_relative,
                     "flag bins where |H| < this fraction of its peak (default 1e-3)");

@@ -23,6 +23,7 @@ void RegisterExportCommand(CLI::App& app) {
   };
   auto o = std::make_shared<Options>();
   AddCommonOptions(*command, o->common);
+  AddWithOption(*command, o->common);
   command->add_option("--out", o->out, "output: FILE.mat, or a folder / FILE.csv stem for CSV files")->required();
   command->add_option("--io", o->io,
                       "inputs and outputs: compliance (wrench at {X} -> motion of {X}), raw (hammer impacts -> "

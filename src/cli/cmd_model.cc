@@ -15,6 +15,7 @@ void RegisterModelCommand(CLI::App& app) {
   auto* command = app.add_subcommand("model", "print bodies, joints, DoF/state count and modes of the model");
   auto options = std::make_shared<CommonOptions>();
   AddCommonOptions(*command, *options);
+  AddWithOption(*command, *options);
   command->callback([options] {
     model::ModelSpec spec = LoadModelFromOptions(*options);
     auto assembled = model::AssembledModel::Assemble(spec, ModelSource(*options));

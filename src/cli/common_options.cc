@@ -13,7 +13,9 @@ void AddCommonOptions(CLI::App& command, CommonOptions& options) {
 void AddWithOption(CLI::App& command, CommonOptions& options) {
   command.add_option("--with", options.with_effects,
                      "add a catalogued effect before the work: EFFECT@LOCATION[:param=value,...] "
-                     "(repeatable; see `stagefit diagnose --help` for the catalogue)");
+                     "(repeatable), e.g. payload@hexapod:mass=5 kg,z=100 mm; catalogue: payload, extra-body, "
+                     "servo-stiffness, joint-offset, coupled-stiffness, structural-damping, sensor-geometry, "
+                     "delay, gyroscopic (README, docs/effects.md)");
 }
 
 bool StderrIsTerminal() { return ::isatty(STDERR_FILENO) != 0; }

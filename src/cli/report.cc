@@ -2,12 +2,16 @@
 
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
 
 namespace stagefit::cli {
 
 model::ModelSpec LoadModelFromOptions(const CommonOptions& options) {
-  return model::LoadModel(options.model_path);
+  model::ModelSpec spec = model::LoadModel(options.model_path);
+  for (const auto& text : options.with_effects) model::ApplyEffect(spec, model::ParseEffect(text, spec));
+  if (!options.with_effects.empty()) model::CheckModel(spec, ModelSource(options) + " with --with effects");
+  return spec;
 }
 
 std::string ModelSource(const CommonOptions& options) {

@@ -11,7 +11,7 @@
 
 namespace stagefit::cli {
 
-/// The model of --model (or the embedded default).
+/// The model of --model (or the embedded default), with every --with effect applied in order.
 model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
 
 /// "<embedded micro-station>" or the --model path, for messages.

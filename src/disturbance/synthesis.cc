@@ -76,7 +76,8 @@ int SynthesisSampleCount(const SynthesisOptions& options, const std::string& con
 }
 
 Eigen::VectorXd SynthesiseSignal(const PsdTable& target, const SynthesisOptions& options,
-                                 std::mt19937_64& rng) {
+                                 std::mt19937_64& rng,
+                                 const std::function<double(double)>& gain2) {
   ValidatePsdTable(target);
   const int n = SynthesisSampleCount(options, target.name);
   const double df = options.sample_rate_hz / n;
@@ -84,7 +85,9 @@ Eigen::VectorXd SynthesiseSignal(const PsdTable& target, const SynthesisOptions&
 
   Eigen::VectorXcd bins = Eigen::VectorXcd::Zero(n / 2 + 1);
   for (int k = 1; k <= last; ++k) {
-    const double amplitude = std::sqrt(2.0 * InterpolatePsd(target, k * df) * df);
+    const double f = k * df;
+    const double psd = InterpolatePsd(target, f) * (gain2 ? gain2(f) : 1.0);
+    const double amplitude = std::sqrt(2.0 * psd * df);
     const double phase = 2.0 * M_PI * static_cast<double>(rng() >> 11) * 0x1.0p-53;
     bins[k] = std::polar(0.5 * amplitude, phase);
   }

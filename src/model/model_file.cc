@@ -343,7 +343,8 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
   }
   Reader r(source);
   ModelSpec spec;
-  r.CheckKeys(root, "model file", {"model", "ground", "acquisition", "body", "joint", "frame", "sensor", "excitation", "history"});
+  r.CheckKeys(root, "model file", {"model", "ground", "acquisition", "body", "joint", "frame", "sensor", "excitation",
+                                   "geometry_correction", "history"});
   if (const toml::table* m = root["model"].as_table()) {
     r.CheckKeys(*m, "[model]", {"name", "description", "compliance_frame", "effects"});
     spec.name = r.String(*m, "name", "[model]", false);
@@ -400,6 +401,24 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
   number = 0;
   if (auto* list = r.ArrayOfTables(root, "excitation")) {
     for (const auto& e : *list) spec.excitations.push_back(ReadPoint(r, *e.as_table(), "excitation", ++number));
+  }
+  if (auto* list = r.ArrayOfTables(root, "geometry_correction")) {
+    for (const auto& e : *list) {
+      const toml::table& t = *e.as_table();
+      const std::string item = "[[geometry_correction]]";
+      r.CheckKeys(t, item, {"channel", "kind", "offset", "rotation"});
+      GeometryCorrection g;
+      g.channel = r.String(t, "channel", item, true);
+      std::string kind = r.String(t, "kind", item, false);
+      if (kind == "impact") {
+        g.is_impact = true;
+      } else if (!kind.empty() && kind != "sensor") {
+        r.Error(&t, item + ": kind = '" + kind + "', expected \"sensor\" or \"impact\"");
+      }
+      g.offset_W = r.Vector3(t, "offset", dim::kLength, item, false);
+      g.rotation_rad = r.Vector3(t, "rotation", dim::kAngle, item, false);
+      spec.geometry_corrections.push_back(g);
+    }
   }
   if (auto* list = r.ArrayOfTables(root, "history")) {
     for (const auto& e : *list) {
@@ -499,6 +518,10 @@ std::string WriteModelToml(const ModelSpec& spec) {
       out << "\n[[" << kind << "]]\nname = " << Quote(p.name) << "\nbody = " << Quote(p.body) << "\nposition = "
           << Vec(p.position_W) << "  # m\ndirection = " << Vec(p.direction_W) << "\n";
     }
+  }
+  for (const auto& g : spec.geometry_corrections) {
+    out << "\n[[geometry_correction]]\nchannel = " << Quote(g.channel) << "\nkind = " << (g.is_impact ? "\"impact\"" : "\"sensor\"")
+        << "\noffset = " << Vec(g.offset_W) << "  # m\nrotation = " << Vec(g.rotation_rad) << "  # rad, Euler XYZ\n";
   }
   for (const auto& h : spec.history) {
     out << "\n[[history]]\nstep = " << Quote(h.step) << "\nerror = " << Fmt(h.error) << "\n";

@@ -63,6 +63,14 @@ std::vector<ParameterInfo> ListParameters(const ModelSpec& spec) {
       }
     }
   }
+  for (size_t b = 0; b < spec.bodies.size(); ++b) {
+    ParameterInfo p;
+    p.name = spec.bodies[b].name + ".m";
+    p.kind = ParameterKind::kMass;
+    p.body = static_cast<int>(b);
+    p.dimension = dim::kMass;
+    list.push_back(p);
+  }
   return list;
 }
 
@@ -98,6 +106,7 @@ ParameterInfo FindParameter(const ModelSpec& spec, const std::string& name) {
 }
 
 double GetParameter(const ModelSpec& spec, const ParameterInfo& p) {
+  if (p.kind == ParameterKind::kMass) return spec.bodies.at(p.body).mass_kg;
   const JointSpec& j = spec.joints.at(p.joint);
   switch (p.kind) {
     case ParameterKind::kStiffness: return j.stiffness[index(p.a)];
@@ -105,11 +114,16 @@ double GetParameter(const ModelSpec& spec, const ParameterInfo& p) {
     case ParameterKind::kLossFactor: return j.loss_factor[index(p.a)];
     case ParameterKind::kCouplingStiffness: return j.couplings.at(p.coupling).stiffness;
     case ParameterKind::kCouplingDamping: return j.couplings.at(p.coupling).damping;
+    case ParameterKind::kMass: break;
   }
   return 0.0;
 }
 
 void SetParameter(ModelSpec& spec, const ParameterInfo& p, double value) {
+  if (p.kind == ParameterKind::kMass) {
+    spec.bodies.at(p.body).mass_kg = value;
+    return;
+  }
   JointSpec& j = spec.joints.at(p.joint);
   switch (p.kind) {
     case ParameterKind::kStiffness: j.stiffness[index(p.a)] = value; break;
@@ -117,6 +131,7 @@ void SetParameter(ModelSpec& spec, const ParameterInfo& p, double value) {
     case ParameterKind::kLossFactor: j.loss_factor[index(p.a)] = value; break;
     case ParameterKind::kCouplingStiffness: j.couplings.at(p.coupling).stiffness = value; break;
     case ParameterKind::kCouplingDamping: j.couplings.at(p.coupling).damping = value; break;
+    case ParameterKind::kMass: break;
   }
 }
 
@@ -127,6 +142,11 @@ SystemDerivative CalcSystemDerivative(const AssembledModel& model, const Paramet
   d.dC = Eigen::MatrixXd::Zero(n, n);
   d.dK = Eigen::MatrixXd::Zero(n, n);
   d.dK_loss = Eigen::MatrixXd::Zero(n, n);
+  if (p.kind == ParameterKind::kMass) {
+    const auto translation = model.body_map(p.body).topRows<3>();
+    d.dM = translation.transpose() * translation;
+    return d;
+  }
   const JointSpec& joint = model.spec().joints.at(p.joint);
   const Matrix6Xd& D = model.joint_map(p.joint);
   const int a = index(p.a), b = index(p.b);
@@ -160,6 +180,8 @@ SystemDerivative CalcSystemDerivative(const AssembledModel& model, const Paramet
       break;
     case ParameterKind::kCouplingDamping:
       d.dC = E;
+      break;
+    case ParameterKind::kMass:
       break;
   }
   return d;

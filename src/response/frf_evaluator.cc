@@ -325,26 +325,44 @@ void FrfEvaluator::SetUpModal(bool forced) {
 }
 
 double FrfEvaluator::ProbeError() {
-  // Probes: 0 Hz (when no pole is near 0), then the lowest, a middle and the highest pole frequency.
+  // Probes away from the resonances (where Z itself is ill-conditioned and the direct reference
+  // loses digits): 0 Hz when no pole is near 0, the geometric means of neighbouring pole magnitudes at
+  // the bottom, middle and top of the spectrum, and twice the highest pole magnitude.
+  std::vector<double> magnitudes;
+  for (Eigen::Index k = 0; k < poles_.size(); ++k) magnitudes.push_back(std::abs(poles_(k)));
+  std::sort(magnitudes.begin(), magnitudes.end());
+  const double top = magnitudes.back();
+  magnitudes.erase(std::unique(magnitudes.begin(), magnitudes.end(),
+                               [top](double a, double b) { return b - a <= 1e-3 * top; }),
+                   magnitudes.end());
   std::vector<double> omegas;
-  Eigen::VectorXd magnitudes = poles_.cwiseAbs();
-  std::sort(magnitudes.data(), magnitudes.data() + magnitudes.size());
-  const double top = magnitudes(magnitudes.size() - 1);
-  if (magnitudes(0) > 1e-6 * top) omegas.push_back(0.0);
-  for (double q : {0.0, 0.5, 1.0}) {
-    omegas.push_back(magnitudes(static_cast<Eigen::Index>(q * (magnitudes.size() - 1))));
+  if (magnitudes.front() > 1e-6 * top) omegas.push_back(0.0);
+  const size_t m = magnitudes.size();
+  for (size_t k : {size_t{0}, m / 2, m >= 2 ? m - 2 : size_t{0}}) {
+    if (k + 1 < m) omegas.push_back(std::sqrt(magnitudes[k] * magnitudes[k + 1]));
   }
-  Eigen::VectorXd omega = Eigen::Map<Eigen::VectorXd>(omegas.data(), static_cast<Eigen::Index>(omegas.size()));
-  double worst = 0.0;
+  omegas.push_back(2.0 * top);
+  const Eigen::VectorXd omega =
+      Eigen::Map<Eigen::VectorXd>(omegas.data(), static_cast<Eigen::Index>(omegas.size()));
+  // Each element is compared with its own peak over the probes; an element far below the other
+  // outputs of the same input (1e-6 of that input's peak: it vanishes by symmetry, or inputs of
+  // different units share the matrix) is compared with that floor instead.
   FrfArray modal, direct;
+  double worst = 0.0;
+  const int no = system_.num_outputs();
   for (int power : {0, 2}) {
     EvaluateModal(omega, power, nullptr, &modal, nullptr);
     EvaluateDirect(omega, power, nullptr, &direct, nullptr);
-    for (Eigen::Index f = 0; f < omega.size(); ++f) {
-      const double peak = direct.values.row(f).cwiseAbs().maxCoeff();
-      if (peak == 0.0) continue;
-      const double diff = (modal.values.row(f) - direct.values.row(f)).cwiseAbs().maxCoeff();
-      worst = std::max(worst, std::isfinite(diff) ? diff / peak : std::numeric_limits<double>::infinity());
+    const Eigen::RowVectorXd element_peak = direct.values.cwiseAbs().colwise().maxCoeff();
+    for (int i = 0; i < system_.num_inputs(); ++i) {
+      const double input_peak = element_peak.segment(no * i, no).maxCoeff();
+      for (int o = 0; o < no; ++o) {
+        const int c = o + no * i;
+        const double scale = std::max(element_peak(c), 1e-6 * input_peak);
+        if (scale == 0.0) continue;
+        const double diff = (modal.values.col(c) - direct.values.col(c)).cwiseAbs().maxCoeff();
+        worst = std::max(worst, std::isfinite(diff) ? diff / scale : std::numeric_limits<double>::infinity());
+      }
     }
   }
   return worst;

@@ -85,6 +85,20 @@ TEST(SynthesiseSignal, IsReproducibleForASeedAndHandlesOddLengths) {
   EXPECT_GT((xa - xc).norm(), 0.1 * xa.norm());
 }
 
+TEST(SynthesiseSignal, Gain2ScalesThePsdAtEverySynthesisFrequency) {
+  const PsdTable target = Target();
+  const SynthesisOptions options{2.0, 1000.0};
+  std::mt19937_64 a(9), b(9);
+  const Eigen::VectorXd plain = SynthesiseSignal(target, options, a);
+  // gain2 = f^2 multiplies each line's amplitude by f_k: the derivative of the signal over 2 pi.
+  const Eigen::VectorXd scaled = SynthesiseSignal(target, options, b, [](double f) { return f * f; });
+  const double df = 1.0 / options.duration_s;
+  double expected = 0.0;
+  for (int k = 1; k < 1000; ++k) expected += InterpolatePsd(target, k * df) * (k * df) * (k * df) * df;
+  EXPECT_NEAR(scaled.squaredNorm() / scaled.size(), expected, 1e-10 * expected);
+  EXPECT_GT(scaled.norm(), plain.norm());
+}
+
 TEST(SynthesiseSignal, RejectsBadTablesAndOptions) {
   PsdTable t = Target();
   std::mt19937_64 rng(1);

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include <cstdint>
+#include <functional>
 #include <random>
 #include <string>
 
@@ -26,15 +27,6 @@ void ValidatePsdTable(const PsdTable& table);
 /// The interpolated PSD at f (see PsdTable), U^2/Hz. Precondition: a valid table.
 double InterpolatePsd(const PsdTable& table, double frequency_hz);
 
-/// A PSD table scaled bin by bin: S_out(f_i) = gain2(f_i) S(f_i), evaluated on the table's own
-/// frequencies (used to turn a displacement PSD into a sensor's voltage PSD before synthesis).
-template <typename Gain2>
-PsdTable ScalePsdTable(const PsdTable& table, Gain2 gain2) {
-  PsdTable out = table;
-  for (Eigen::Index i = 0; i < out.psd.size(); ++i) out.psd[i] *= gain2(out.frequency_hz[i]);
-  return out;
-}
-
 /// Length and rate of a synthesised record.
 struct SynthesisOptions {
   double duration_s = 10.0;         ///< T > 0, s (or metres of scan for spatial records)
@@ -53,7 +45,13 @@ int SynthesisSampleCount(const SynthesisOptions& options, const std::string& con
 /// The signal is periodic with period T; its mean square is exactly sum_k S(f_k) df, the rectangle-rule
 /// integral of S over (0, fs/2), and its Welch PSD estimates S. Computed as one inverse real FFT of
 /// X_k = (A_k / 2) e^{j phi_k}. Throws InputError for an invalid table or options.
+///
+/// `gain2`, when given, multiplies the interpolated PSD at every f_k: S(f_k) -> gain2(f_k) S(f_k)
+/// (e.g. CalcGeophoneDisplacementGain2 to synthesise a geophone's voltage from a ground displacement
+/// PSD; applied at each synthesis frequency, not at the table's points, so the interpolation stays
+/// on the smooth physical spectrum).
 Eigen::VectorXd SynthesiseSignal(const PsdTable& target, const SynthesisOptions& options,
-                                 std::mt19937_64& rng);
+                                 std::mt19937_64& rng,
+                                 const std::function<double(double)>& gain2 = nullptr);
 
 }  // namespace stagefit::disturbance

@@ -70,6 +70,17 @@ struct PointSpec {
   Eigen::Vector3d direction_W = Eigen::Vector3d::UnitX();
 };
 
+/// A correction of a measurement channel's declared geometry (the sensor-geometry effect): the sensor
+/// or impact named `channel` really sits at position + offset_W and measures along R(rotation) times
+/// its declared direction, with R = RotationFromEuler(rotation_rad). Applied by the comparison to the
+/// measurement's geometry before the model's outputs and the projections are built.
+struct GeometryCorrection {
+  std::string channel;
+  bool is_impact = false;                                   ///< false: a sensor (output) channel
+  Eigen::Vector3d offset_W = Eigen::Vector3d::Zero();       ///< m
+  Eigen::Vector3d rotation_rad = Eigen::Vector3d::Zero();   ///< Euler XYZ, rad
+};
+
 /// One step of the compare -> diagnose -> fit loop, kept with a tuned model.
 struct HistoryEntry {
   std::string step;     ///< e.g. "fit", "fit --with payload@hexapod"
@@ -89,6 +100,7 @@ struct ModelSpec {
   std::string compliance_frame = "X";
   double acquisition_delay_s = 0.0;                     ///< pure delay on every output
   std::vector<std::string> effects;                     ///< catalogued effects applied, in order
+  std::vector<GeometryCorrection> geometry_corrections;
   std::vector<HistoryEntry> history;
 };
 

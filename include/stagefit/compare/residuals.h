@@ -1,0 +1,243 @@
+#pragma once
+// The SPEC §4 error scalar between a model and a measurement: the one definition shared by compare, fit
+// and diagnose (docs/error-metric.md gives the equations with their motivation).
+//
+// Comparison space.
+//  - kCompliance (default): the 6x6 compliance at the compliance frame {X}. A measurement whose
+//    channels carry geometry is projected with measurement::ProjectToFrame() about p_WXo (the
+//    measurement's frame_origin_W, else the origin of the model's compliance frame):
+//        H_X = pinv(J_a) H_L pinv(J_F'),
+//    outputs Dx Dy Dz Rx Ry Rz, inputs Fx Fy Fz Mx My Mz, W axes. A measurement without geometry that
+//    is already 6x6 is taken as projected (same convention). The model side is the motion of the
+//    point p_WXo of the compliance frame's body under a force/torque at that point, W axes: the same
+//    quantity the projection estimates.
+//  - kRaw: the raw channels. Model outputs are sensors (body, position_W, direction_W) and inputs
+//    forces built from the measurement's ChannelGeometry, so a measurement with its own geometry
+//    needs no [[sensor]] or [[excitation]] entries in the model.
+// Both sides are in the comparison quantity (the measurement's unless overridden). The ratio
+// H_model / H_meas, hence the error, does not depend on the quantity: s^p cancels.
+//
+// Significance (which elements (o, i) are used). With G_oi = exp(mean_f ln|H_meas,oi(f)|), the
+// log-mean (geometric-mean) magnitude of the MEASURED element over the comparison band's frequencies:
+//  - compliance space: kappa_oi = exp(mean_f [ln|H_oi| - (ln|H_oo| + ln|H_ii|) / 2]), the coupling
+//    coefficient |H_oi| / sqrt(|H_oo| |H_ii|) averaged on a log scale. It is dimensionless for every
+//    pair of DoF (m/N, rad/Nm, m/Nm), 1 on the diagonal, <= 1 for a passive static compliance
+//    (Cauchy-Schwarz), independent of the quantity, and the log mean is not dominated by a resonance
+//    peak or an antiresonance dip;
+//  - raw space: kappa_oi = G_oi / sqrt(max_j G_oj * max_k G_ki): the element against the strongest
+//    element of its output row and of its input column (all raw elements share one unit).
+// The element is used when kappa_oi >= significance_threshold (default 0.1 = -20 dB). The diagonal
+// (kappa = 1) is always kept; a strong coupling such as Dx-Ry of a stage whose centre of mass is
+// above {X} has kappa ~ 0.1 ... 0.5; cross-talk of a symmetric stage is orders of magnitude below.
+// |H| is floored at the smallest normal double before the logarithm (an exact zero gives kappa ~ 0).
+//
+// Weight per point (element, frequency).
+//  - Without coherence: w = 1.
+//  - Raw space with coherence gamma^2: w = min(SNR, cap), SNR = sqrt(gamma^2 / (1 - gamma^2)) (the
+//    amplitude signal-to-noise ratio of an H1 estimate: |N|^2 / |S|^2 = (1 - gamma^2) / gamma^2), cap =
+//    coherence_weight_cap (default 30, i.e. gamma^2 >= 0.99889 counts as noise-free). gamma^2 = 1
+//    gives the cap, gamma^2 = 0 gives w = 0 (the point is dropped).
+//  - Compliance space with coherence: the noise of each raw point, sigma_L = |H_L| / SNR_L, is
+//    propagated through the linear projection as independent errors,
+//        sigma_X(a, b)^2 = sum_{o, i} |P(a, o)|^2 |Q(i, b)|^2 sigma_L(o, i)^2,
+//    P = pinv(J_a), Q = pinv(J_F'), and w = min(|H_X(a, b)| / sigma_X(a, b), cap).
+//  Points whose measured value is exactly zero or whose weight is 0 are not used.
+//
+// Error. Per used point p, e_p = ln(H_model / H_meas) = ln|H_model / H_meas| + j arg(H_model / H_meas)
+// (std::log: phase wrapped to (-pi, pi]), and
+//     error = sqrt(sum_p w_p^2 |e_p|^2 / sum_p w_p^2).
+// 0.01 means about 1 % in magnitude (|ln 1.01| = 0.00995).
+//
+// Residual vector (P used points, in element-major order: used element by used element, its
+// frequencies ascending):
+//     r = [Re(w_p e_p); Im(w_p e_p)] / sqrt(sum_p w_p^2)     (size 2P: all real parts, then all imaginary)
+// so that error = ||r||_2, and its Jacobian with respect to parameters p_k in natural units (N/m,
+// Nm/rad, N s/m, ...; the fit layer applies its own transforms):
+//     de_p/dp_k = (dH_model/dp_k) / H_model,    J(:, k) = [Re(w de/dp_k); Im(w de/dp_k)] / sqrt(sum w^2).
+//
+// Thread safety: a Comparison is immutable after Create(); its const member functions assemble and
+// evaluate the model in local workspaces and may be called from several threads.
+
+#include <Eigen/Core>
+
+#include <complex>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "stagefit/measurement/frf_data.h"
+#include "stagefit/measurement/projection.h"
+#include "stagefit/model/linear_system.h"
+#include "stagefit/model/model_spec.h"
+#include "stagefit/model/parameters.h"
+#include "stagefit/response/frf_evaluator.h"
+
+namespace stagefit::compare {
+
+/// Where model and measurement are compared.
+enum class ComparisonSpace {
+  kCompliance,  ///< the 6x6 compliance at {X} (measurement projected with J_a and J_F)
+  kRaw,         ///< the raw accelerometer x hammer channels
+};
+
+/// "compliance" | "raw"; throws InputError naming `context` (e.g. "--space") otherwise.
+ComparisonSpace ParseComparisonSpace(const std::string& text, const std::string& context);
+std::string ToString(ComparisonSpace space);
+
+/// Default significance threshold on kappa (header): 0.1 = -20 dB below the reference elements.
+inline constexpr double kDefaultSignificanceThreshold = 0.1;
+/// Default cap of the coherence-derived weight: SNR 30 (gamma^2 = 0.9989) is already a clean point;
+/// without a cap a single gamma^2 = 1 point would carry unbounded weight.
+inline constexpr double kDefaultCoherenceWeightCap = 30.0;
+
+struct ComparisonOptions {
+  ComparisonSpace space = ComparisonSpace::kCompliance;
+  /// Comparison band, Hz (inclusive). The band used is the intersection with the measurement's
+  /// frequencies; the defaults select all of them.
+  double fmin_hz = 0.0;
+  double fmax_hz = std::numeric_limits<double>::infinity();
+  /// Elements with kappa >= this are used (header). In [0, 1]; 0 uses every element.
+  double significance_threshold = kDefaultSignificanceThreshold;
+  /// Upper bound of the coherence-derived weight (> 0).
+  double coherence_weight_cap = kDefaultCoherenceWeightCap;
+  /// Ignore the measurement's coherence (w = 1 everywhere).
+  bool use_coherence = true;
+  /// Quantity in which both sides are held and reported; default the measurement's. The error does
+  /// not depend on it.
+  std::optional<measurement::FrfQuantity> quantity;
+  /// Bands of the breakdown: 1 = octaves, 3 = third octaves (measurement::MakeFractionalOctaveBands).
+  int bands_per_octave = 3;
+};
+
+/// One element (output o, input i) of the compared FRF matrix.
+struct ElementIndex {
+  int output = 0;
+  int input = 0;
+};
+
+/// The error of one used element over the band.
+struct ElementError {
+  ElementIndex index;
+  std::string name;          ///< "<output>/<input>", e.g. "Dx/Fx" or "a1x/h3"
+  double significance = 0;   ///< kappa (header)
+  int num_points = 0;
+  double error = 0;          ///< sqrt(sum w^2 |e|^2 / sum w^2) over this element's points
+  double share = 0;          ///< this element's part of sum w^2 |e|^2 (the shares sum to 1)
+  double mean_log_magnitude = 0;  ///< w^2-weighted mean of Re(e) = ln|H_model/H_meas| (> 0: model too soft/large)
+  double mean_phase_rad = 0;      ///< w^2-weighted mean of Im(e), rad
+};
+
+/// The error in one frequency band, over all used elements.
+struct BandError {
+  measurement::FrequencyBand band;
+  int num_points = 0;
+  double error = 0;
+  double share = 0;
+};
+
+/// Everything Comparison::Evaluate() finds for one model.
+struct ComparisonResult {
+  double error = 0;                      ///< SPEC §4 error scalar
+  std::vector<ElementError> elements;    ///< one per used element, in Comparison::used_elements() order
+  std::vector<BandError> bands;          ///< bands holding at least one used point, ascending
+  /// elements.size() x bands.size(): the error of element k in band b; NaN where it has no point.
+  Eigen::MatrixXd element_band_error;
+  /// The model on the comparison grid: num_frequencies() matrices of size num_outputs x num_inputs, in
+  /// the comparison quantity.
+  std::vector<Eigen::MatrixXcd> model;
+
+  /// The error, the `max_rows` worst elements and the `max_rows` worst bands, as a short table.
+  std::string BriefReport(int max_rows = 8) const;
+};
+
+class Comparison {
+ public:
+  /// Prepares the comparison of models of `spec`'s layout (bodies, compliance frame) with
+  /// `measurement` (which must have passed measurement::Validate()).
+  /// Throws InputError (naming the measurement's source) when: the band holds no measured frequency;
+  /// the compliance space is asked for a measurement without geometry that is not 6x6; the projection
+  /// fails (channels without geometry, sensors on several bodies, unobservable DoF); the model has no
+  /// compliance frame (compliance space); a channel's body is not in the model (raw space); no element
+  /// is significant; an option is out of range.
+  static Comparison Create(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                           const ComparisonOptions& options = {});
+
+  /// The SPEC §4 error scalar of the model `spec` (header). `spec` must keep the layout given to
+  /// Create() (bodies and channels); parameters and effects may differ. Throws InputError when `spec`
+  /// is invalid, NumericalError when the model's response is zero or not finite at a used point.
+  double Error(const model::ModelSpec& spec) const;
+
+  /// r (resized to num_residuals()) of the header, ||r|| = Error(spec). Same throws as Error().
+  void Residuals(const model::ModelSpec& spec, Eigen::VectorXd* r) const;
+
+  /// r and J = dr/dp (num_residuals() x params.size()), analytic from the response layer's
+  /// derivatives, parameters in natural units. `params` come from model::ListParameters(spec) or
+  /// model::MatchParameters(spec, ...). J may be null. Same throws as Error().
+  void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
+                            Eigen::VectorXd* r, Eigen::MatrixXd* J) const;
+
+  /// The error with its breakdown by element and band, and the model's FRFs on the grid.
+  ComparisonResult Evaluate(const model::ModelSpec& spec) const;
+
+  /// The model's FRFs on the comparison grid (num_frequencies() matrices num_outputs x num_inputs).
+  std::vector<Eigen::MatrixXcd> EvaluateModel(const model::ModelSpec& spec) const;
+
+  ComparisonSpace space() const { return space_; }
+  measurement::FrfQuantity quantity() const { return quantity_; }
+  /// Frequencies of the comparison grid (the measurement's within the band), Hz.
+  const Eigen::VectorXd& frequency_hz() const { return frequency_hz_; }
+  int num_frequencies() const { return static_cast<int>(frequency_hz_.size()); }
+  const std::vector<std::string>& output_names() const { return output_names_; }
+  const std::vector<std::string>& input_names() const { return input_names_; }
+  int num_outputs() const { return static_cast<int>(output_names_.size()); }
+  int num_inputs() const { return static_cast<int>(input_names_.size()); }
+  /// The measurement on the grid, in the comparison space and quantity (num_frequencies() matrices).
+  const std::vector<Eigen::MatrixXcd>& measured() const { return measured_; }
+  /// The weight w of every point (num_frequencies() matrices num_outputs x num_inputs; 0 = unused).
+  const std::vector<Eigen::MatrixXd>& weights() const { return weights_; }
+  /// kappa of every element (num_outputs x num_inputs).
+  const Eigen::MatrixXd& significance() const { return significance_; }
+  /// The used elements, output-major (o ascending, then i).
+  const std::vector<ElementIndex>& used_elements() const { return used_elements_; }
+  /// "<output>/<input>".
+  std::string ElementName(ElementIndex index) const;
+  /// Number of used points P; num_residuals() = 2 P.
+  int num_points() const { return static_cast<int>(points_.size()); }
+  int num_residuals() const { return 2 * num_points(); }
+  /// The point of the compliance projection, p_WXo (m, in W); compliance space only.
+  const Eigen::Vector3d& frame_origin_W() const { return p_WXo_; }
+  /// The model inputs/outputs that correspond to the compared channels.
+  const std::vector<model::InputSpec>& model_inputs() const { return model_inputs_; }
+  const std::vector<model::OutputSpec>& model_outputs() const { return model_outputs_; }
+
+ private:
+  struct Point {
+    int element = 0;   // index into used_elements_
+    int frequency = 0;
+    double weight = 0;
+  };
+
+  Comparison() = default;
+  model::SecondOrderSystem BuildModelSystem(const model::AssembledModel& model) const;
+  // e_p for every point, from the model's FRF values (layout of response::FrfArray::values).
+  void CalcLogErrors(const Eigen::MatrixXcd& model_values, Eigen::VectorXcd* e) const;
+
+  ComparisonSpace space_ = ComparisonSpace::kCompliance;
+  measurement::FrfQuantity quantity_ = measurement::FrfQuantity::kAccelerance;
+  std::string source_;
+  Eigen::VectorXd frequency_hz_;
+  std::vector<std::string> output_names_, input_names_;
+  std::vector<Eigen::MatrixXcd> measured_;
+  std::vector<Eigen::MatrixXd> weights_;
+  Eigen::MatrixXd significance_;
+  std::vector<ElementIndex> used_elements_;
+  std::vector<Point> points_;
+  double weight_norm_ = 1.0;  // sqrt(sum w^2)
+  int bands_per_octave_ = 3;
+  Eigen::Vector3d p_WXo_ = Eigen::Vector3d::Zero();
+  std::vector<model::InputSpec> model_inputs_;
+  std::vector<model::OutputSpec> model_outputs_;
+};
+
+}  // namespace stagefit::compare

@@ -1,0 +1,201 @@
+#pragma once
+// The generic least-squares core of the fit layer: Options in, Summary out (FitOptions -> FitSummary).
+// Ceres and NLopt stay behind this one interface; the model binding (model_fit.h) and any other caller
+// only see LeastSquaresProblem, ParameterSpec, FitOptions and FitSummary.
+//
+// Problem. Find p (n parameters, natural SI units) minimising
+//     cost(p) = 0.5 ||r(p)||^2,        r: R^n -> R^m,
+// within lower <= p <= upper. The reported "error" is ||r|| = sqrt(2 cost): for the model comparison
+// (compare/residuals.h) r is normalised so that ||r|| is the SPEC §4 error scalar.
+//
+// Parameterisation. A parameter with log_scale = true (positive physical quantities: stiffness,
+// damping) is optimised as theta = ln p, with the Jacobian by the chain rule dr/dtheta = (dr/dp) p and
+// the bounds ln(lower) <= theta <= ln(upper). Other parameters are optimised as theta = p.
+//
+// Uncertainty. At the optimum, with J = dr/dtheta (m x n),
+//     Cov(theta) = sigma^2 (J' J)^-1,        sigma^2 = ||r||^2 / (m - n) = 2 cost / (m - n),
+// and Cov(p) = diag(dp/dtheta) Cov(theta) diag(dp/dtheta) (linearised). sigma^2 is the unbiased
+// estimator of the residual variance of a model that is linear near the optimum with independent
+// residuals of equal variance: E[||r*||^2] = (m - n) sigma^2, because the optimum removes the n
+// directions spanned by J (the residual is the projection of the noise onto the (m - n)-dimensional
+// complement of range(J)). The weights of the comparison make the residuals of equal variance; a
+// model that misses a physical effect leaves structured (correlated) residuals, for which the
+// standard deviations are lower bounds. J' J is inverted after scaling its columns to unit norm
+// (Jacobi scaling), by SVD: a singular value below kRankTolerance times the largest makes the
+// parameters involved in its direction undetermined (standard deviation +infinity).
+//
+// Identifiability warnings (FitSummary::warnings, ParameterEstimate::identifiable = false):
+//  - sensitivity: the column norm of dr/dtheta (the change of r for a relative change of the
+//    parameter) below FitOptions::min_relative_sensitivity times the largest column norm;
+//  - correlation: |corr(theta_i, theta_j)| > FitOptions::max_correlation (the data see a combination);
+//  - relative standard deviation std(p)/|p| > FitOptions::max_relative_std (or undetermined).
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace stagefit::fit {
+
+/// A least-squares problem in natural units. Implementations need not be thread-safe: the solvers call
+/// Evaluate() from one thread.
+class LeastSquaresProblem {
+ public:
+  virtual ~LeastSquaresProblem() = default;
+  virtual int num_parameters() const = 0;
+  virtual int num_residuals() const = 0;
+  /// True when Evaluate() can fill the Jacobian.
+  virtual bool has_jacobian() const = 0;
+  /// Residuals r(p) (resized to num_residuals()) and, when `jacobian` is not null (only called so when
+  /// has_jacobian()), J = dr/dp (num_residuals() x num_parameters(), unit of r per unit of p).
+  /// Returns false when r cannot be evaluated at `p` (the solver then shortens its step); throws only
+  /// for broken invariants.
+  virtual bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) const = 0;
+};
+
+/// One free parameter of a fit.
+struct ParameterSpec {
+  std::string name;
+  std::string unit;                 ///< SI unit, for reports (e.g. "N/m")
+  double initial = 0.0;             ///< natural units; within [lower, upper]
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  bool log_scale = false;           ///< optimise ln p (requires initial > 0 and lower > 0 or -inf)
+};
+
+enum class SolverKind { kCeres, kNlopt };
+enum class JacobianKind {
+  kAnalytic,          ///< the problem's Jacobian (requires has_jacobian())
+  kFiniteDifference,  ///< central differences in the optimisation variables theta
+};
+/// "ceres" | "nlopt"; "analytic" | "finite-difference". Throw InputError naming `context` otherwise.
+SolverKind ParseSolverKind(const std::string& text, const std::string& context);
+JacobianKind ParseJacobianKind(const std::string& text, const std::string& context);
+std::string ToString(SolverKind kind);
+std::string ToString(JacobianKind kind);
+
+/// Throws InputError naming `context` when `name` is not an NLopt algorithm name (e.g. "LN_BOBYQA",
+/// "LN_SBPLX", "GN_CRS2_LM", "GN_DIRECT", "LD_LBFGS"; the prefix NLOPT_ is optional).
+void CheckNloptAlgorithm(const std::string& name, const std::string& context);
+
+enum class FitStatus {
+  kConverged,      ///< a tolerance was met
+  kMaxIterations,  ///< the iteration or evaluation budget ran out first
+  kFailed,         ///< the solver failed (no evaluable start, numerical breakdown)
+};
+std::string ToString(FitStatus status);  ///< "converged", "max_iterations", "failed"
+
+/// What the progress callback receives after each solver iteration.
+struct FitProgress {
+  int start = 0;             ///< index of the current start, 0-based
+  int num_starts = 1;
+  std::string stage;         ///< "ceres", "nlopt", "polish"
+  int iteration = 0;         ///< iteration (Ceres) or evaluation count (NLopt) within the stage
+  double cost = 0.0;         ///< current cost 0.5 ||r||^2
+  double best_cost = 0.0;    ///< best final cost of the completed starts (inf before the first)
+  double elapsed_s = 0.0;    ///< since Solve() started
+};
+
+struct FitOptions {
+  SolverKind solver = SolverKind::kCeres;
+  JacobianKind jacobian = JacobianKind::kAnalytic;
+  /// Ceres: Levenberg-Marquardt iterations per start (and per polish).
+  int max_iterations = 100;
+  /// Ceres convergence: relative cost change, max-norm of the projected gradient relative to its
+  /// start value, and relative step size.
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-10;
+  /// NLopt: algorithm name (nlopt_algorithm_from_string), evaluation budget per start, relative
+  /// tolerance on the objective and on theta.
+  std::string nlopt_algorithm = "LN_BOBYQA";
+  int nlopt_max_evaluations = 4000;
+  double nlopt_relative_tolerance = 1e-10;
+  /// NLopt: finish every start with Ceres (analytic or finite-difference Jacobian as set above).
+  bool nlopt_polish = true;
+  /// Multi-start: start 0 is the initial values; starts 1..N-1 are drawn uniformly in theta within
+  /// a factor start_factor around the initial value (log-scale parameters: p0 / f .. p0 f; others:
+  /// p0 -+ (f - 1) |p0|), clipped to the bounds, from a generator seeded with `seed`. The start with
+  /// the lowest final cost is kept.
+  int num_starts = 1;
+  double start_factor = 1.6;
+  std::uint64_t seed = 1;
+  /// Identifiability thresholds (see the header).
+  double min_relative_sensitivity = 1e-3;
+  double max_correlation = 0.95;
+  double max_relative_std = 1.0;
+  /// Called after each iteration; the library never prints. May be empty.
+  std::function<void(const FitProgress&)> progress;
+};
+
+/// The estimate of one parameter.
+struct ParameterEstimate {
+  std::string name;
+  std::string unit;
+  double initial = 0.0;
+  double value = 0.0;
+  /// Standard deviation in natural units (see the header); +infinity when undetermined, NaN when the
+  /// residual variance cannot be estimated (m <= n).
+  double std_dev = 0.0;
+  double lower = 0.0, upper = 0.0;
+  bool log_scale = false;
+  bool at_bound = false;            ///< within 1e-6 (relative, in theta) of a bound
+  double relative_sensitivity = 0.0;  ///< column norm of dr/dtheta over the largest one
+  bool identifiable = true;
+};
+
+/// The outcome of one start of a multi-start fit.
+struct StartOutcome {
+  Eigen::VectorXd initial;  ///< natural units
+  Eigen::VectorXd value;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  FitStatus status = FitStatus::kFailed;
+  int iterations = 0;
+};
+
+struct FitSummary {
+  FitStatus status = FitStatus::kFailed;
+  std::string message;               ///< one line: the solver's termination reason
+  std::string solver;                ///< e.g. "ceres (LM, DENSE_QR, analytic J)"
+  int num_parameters = 0;
+  int num_residuals = 0;
+  double initial_cost = 0.0;         ///< 0.5 ||r||^2 at the initial values
+  double final_cost = 0.0;
+  double initial_error = 0.0;        ///< ||r|| at the initial values
+  double final_error = 0.0;
+  int iterations = 0;                ///< of the kept start (all stages)
+  int num_evaluations = 0;           ///< residual evaluations over all starts
+  double time_s = 0.0;               ///< wall time of Solve()
+  double residual_variance = 0.0;    ///< sigma^2 = 2 cost / (m - n)
+  std::vector<ParameterEstimate> parameters;
+  Eigen::MatrixXd covariance;        ///< n x n, natural units (+inf / NaN entries when undetermined)
+  Eigen::MatrixXd correlation;       ///< n x n, NaN rows/columns for undetermined parameters
+  std::vector<std::string> warnings;
+  std::vector<StartOutcome> starts;  ///< every start, in order
+  int best_start = 0;
+
+  bool converged() const { return status == FitStatus::kConverged; }
+  Eigen::VectorXd values() const;
+  /// One line: status, error before -> after, iterations, time.
+  std::string BriefReport() const;
+  /// Several lines: solver, costs, table of parameters (initial, value, std, unit, flags),
+  /// correlations above the threshold, start spread, warnings.
+  std::string FullReport() const;
+};
+
+/// Solves `problem` over `parameters` (sizes must match problem.num_parameters()).
+/// Throws InputError for inconsistent parameters (initial outside the bounds, log_scale with a
+/// non-positive initial or lower bound, lower > upper), an analytic Jacobian requested from a problem
+/// without one, an unknown NLopt algorithm or a global NLopt algorithm with infinite bounds.
+/// Numerical failure is reported in FitSummary::status, never thrown.
+FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
+                 const FitOptions& options);
+
+/// Relative rank tolerance on the singular values of the column-scaled Jacobian.
+inline constexpr double kRankTolerance = 1e-10;
+
+}  // namespace stagefit::fit

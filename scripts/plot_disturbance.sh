@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Renders PSD CSV files written by `stagefit disturbance psd` (or the target tables in
+# measurements/disturbance/) as log-log amplitude spectral densities, sqrt(PSD), one PNG per file,
+# one curve per column. Needs gnuplot (gnuplot-nox is enough).
+#
+#   scripts/plot_disturbance.sh PSD.csv [PSD2.csv ...]    -> PSD.png, PSD2.png beside the inputs
+#   OUT_DIR=plots scripts/plot_disturbance.sh PSD.csv     -> plots/PSD.png
+set -euo pipefail
+
+if [[ $# -lt 1 ]]; then
+  echo "usage: $0 PSD.csv [PSD2.csv ...]" >&2
+  exit 1
+fi
+command -v gnuplot >/dev/null || { echo "$0: gnuplot not found" >&2; exit 1; }
+
+for csv in "$@"; do
+  [[ -f "$csv" ]] || { echo "$0: no file $csv" >&2; exit 2; }
+  header=$(awk '!/^#/ && NF { print; exit }' "$csv")
+  IFS=',' read -r -a columns <<<"$header"
+  if [[ ${#columns[@]} -lt 2 ]]; then
+    echo "$0: $csv: expected a frequency column and at least one PSD column" >&2
+    exit 2
+  fi
+  xlabel="Frequency [Hz]"
+  [[ "${columns[0]}" == spatial_frequency_per_m ]] && xlabel="Spatial frequency [1/m]"
+  # Units of the PSD columns from the "# unit NAME UNIT" lines; the ASD unit is written as
+  # sqrt(UNIT) unless the unit is "X^2/Y" (then X/sqrt(Y)).
+  base=$(basename "${csv%.*}")
+  out_dir=${OUT_DIR:-$(dirname "$csv")}
+  mkdir -p "$out_dir"
+  png="$out_dir/$base.png"
+  plots=""
+  for ((c = 1; c < ${#columns[@]}; ++c)); do
+    name=${columns[$c]}
+    [[ "$name" == reliable ]] && continue
+    unit=$(awk -v n="$name" '$1 == "#" && $2 == "unit" && $3 == n { $1 = $2 = $3 = ""; sub(/^ +/, ""); print; exit }' "$csv")
+    if [[ "$unit" =~ ^([^/^]+)\^2/(.+)$ ]]; then
+      asd_unit="${BASH_REMATCH[1]}/sqrt(${BASH_REMATCH[2]})"
+    elif [[ -n "$unit" ]]; then
+      asd_unit="sqrt($unit)"
+    else
+      asd_unit="U/sqrt(Hz)"
+    fi
+    plots+="${plots:+, }'$csv' using 1:((\$$((c + 1)) > 0 && \$1 > 0) ? sqrt(\$$((c + 1))) : 1/0) with lines lw 1.5 title '$name [$asd_unit]'"
+  done
+  gnuplot <<GNUPLOT
+set terminal pngcairo size 900,600 noenhanced
+set output '$png'
+set datafile separator ','
+set datafile commentschars '#'
+set key autotitle columnhead
+set logscale xy
+set grid xtics ytics mxtics mytics
+set format y '%.0e'
+set xlabel '$xlabel'
+set ylabel 'Amplitude spectral density'
+set title '$base'
+set key bottom left
+plot $plots
+GNUPLOT
+  echo "wrote $png"
+done

@@ -1,0 +1,514 @@
+#include "stagefit/compare/residuals.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "stagefit/common/dof.h"
+#include "stagefit/common/error.h"
+#include "stagefit/model/assembled_model.h"
+
+namespace stagefit::compare {
+namespace {
+
+using measurement::FrfData;
+using measurement::FrfQuantity;
+
+constexpr const char* kWrenchNames[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+constexpr double kDegreesPerRadian = 57.29577951308232;
+
+std::string Where(const FrfData& data) {
+  return "measurement '" + (data.source.empty() ? std::string("<memory>") : data.source) + "'";
+}
+
+response::ResponseQuantity ToResponseQuantity(FrfQuantity quantity) {
+  switch (quantity) {
+    case FrfQuantity::kAccelerance: return response::ResponseQuantity::kAccelerance;
+    case FrfQuantity::kMobility: return response::ResponseQuantity::kMobility;
+    case FrfQuantity::kReceptance: return response::ResponseQuantity::kReceptance;
+  }
+  return response::ResponseQuantity::kReceptance;
+}
+
+// True when the channels are already the 6 DoF of a frame (names Dx..Rz and Fx..Mz, as written by
+// measurement::ProjectToFrame()), or a 6x6 without geometry.
+bool IsProjected(const FrfData& data) {
+  if (data.num_outputs() != 6 || data.num_inputs() != 6) return false;
+  bool named = true;
+  for (int k = 0; k < 6; ++k) {
+    named = named && data.outputs[k].name == kDofNames[k] && data.inputs[k].name == kWrenchNames[k];
+  }
+  if (named) return true;
+  for (const auto& c : data.outputs) if (c.has_geometry()) return false;
+  for (const auto& c : data.inputs) if (c.has_geometry()) return false;
+  return true;
+}
+
+bool HasAllGeometry(const FrfData& data) {
+  for (const auto& c : data.outputs) if (!c.has_geometry()) return false;
+  for (const auto& c : data.inputs) if (!c.has_geometry()) return false;
+  return true;
+}
+
+double SafeLogAbs(std::complex<double> z) {
+  return std::log(std::max(std::abs(z), std::numeric_limits<double>::min()));
+}
+
+double SnrFromCoherence(double gamma2) {
+  if (gamma2 <= 0.0) return 0.0;
+  if (gamma2 >= 1.0) return std::numeric_limits<double>::infinity();
+  return std::sqrt(gamma2 / (1.0 - gamma2));
+}
+
+}  // namespace
+
+ComparisonSpace ParseComparisonSpace(const std::string& text, const std::string& context) {
+  if (text == "compliance") return ComparisonSpace::kCompliance;
+  if (text == "raw") return ComparisonSpace::kRaw;
+  throw InputError(context + ": '" + text + "', expected 'compliance' or 'raw'");
+}
+
+std::string ToString(ComparisonSpace space) {
+  return space == ComparisonSpace::kCompliance ? "compliance" : "raw";
+}
+
+std::string Comparison::ElementName(ElementIndex index) const {
+  return output_names_[index.output] + "/" + input_names_[index.input];
+}
+
+Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                              const ComparisonOptions& options) {
+  const std::string where = Where(measurement);
+  if (!(options.significance_threshold >= 0.0 && options.significance_threshold <= 1.0)) {
+    throw InputError("comparison: significance threshold " + std::to_string(options.significance_threshold) +
+                     ", expected a value in [0, 1]");
+  }
+  if (!(options.coherence_weight_cap > 0.0) || !std::isfinite(options.coherence_weight_cap)) {
+    throw InputError("comparison: coherence weight cap " + std::to_string(options.coherence_weight_cap) +
+                     ", expected a finite value > 0");
+  }
+  if (!(options.fmin_hz <= options.fmax_hz) || std::isnan(options.fmin_hz)) {
+    throw InputError("comparison: band [" + std::to_string(options.fmin_hz) + ", " +
+                     std::to_string(options.fmax_hz) + "] Hz, expected fmin <= fmax");
+  }
+  if (options.bands_per_octave < 1) {
+    throw InputError("comparison: bands per octave " + std::to_string(options.bands_per_octave) +
+                     ", expected >= 1");
+  }
+
+  Comparison c;
+  c.space_ = options.space;
+  c.source_ = measurement.source;
+  c.quantity_ = options.quantity.value_or(measurement.quantity);
+  c.bands_per_octave_ = options.bands_per_octave;
+
+  // Frequencies in the band.
+  std::vector<int> rows;
+  for (int f = 0; f < measurement.num_frequencies(); ++f) {
+    const double hz = measurement.frequency_hz(f);
+    if (hz >= options.fmin_hz && hz <= options.fmax_hz) rows.push_back(f);
+  }
+  if (rows.empty()) {
+    std::ostringstream msg;
+    msg << where << ": freq_hz: no frequency in the comparison band [" << options.fmin_hz << ", "
+        << options.fmax_hz << "] Hz (the data spans " << measurement.frequency_hz(0) << " .. "
+        << measurement.frequency_hz(measurement.num_frequencies() - 1) << " Hz)";
+    throw InputError(msg.str());
+  }
+  const int nf = static_cast<int>(rows.size());
+  c.frequency_hz_.resize(nf);
+  for (int k = 0; k < nf; ++k) c.frequency_hz_(k) = measurement.frequency_hz(rows[k]);
+
+  // Raw SNR per point (infinite = noise-free).
+  const bool use_coherence = options.use_coherence && measurement.has_coherence();
+  auto raw_snr = [&](int k, int o, int i) {
+    return use_coherence ? SnrFromCoherence(measurement.coherence[rows[k]](o, i))
+                         : std::numeric_limits<double>::infinity();
+  };
+  const double cap = options.coherence_weight_cap;
+  c.weights_.assign(nf, Eigen::MatrixXd());
+  c.measured_.assign(nf, Eigen::MatrixXcd());
+
+  if (options.space == ComparisonSpace::kCompliance) {
+    const int frame = model::FindFrame(spec, spec.compliance_frame);
+    if (frame < 0) {
+      throw InputError("model '" + spec.name + "': compliance frame '" + spec.compliance_frame +
+                       "' is not among its [[frame]] entries, needed by the compliance comparison");
+    }
+    const model::FrameSpec& X = spec.frames[frame];
+    c.p_WXo_ = measurement.frame_origin_W.value_or(X.origin_W);
+    Eigen::MatrixXd P, Q;  // H_X = P H_L Q
+    const bool projected = IsProjected(measurement);
+    if (!projected) {
+      if (!HasAllGeometry(measurement)) {
+        throw InputError(where + ": sensor_position/impact_position: the compliance comparison needs the "
+                         "geometry of every channel (or a projected 6x6 FRF with outputs Dx..Rz and inputs "
+                         "Fx..Mz); give the geometry or compare with --space raw");
+      }
+      const FrfData projection = measurement::ProjectToFrame(measurement, X.origin_W);
+      P = measurement::PseudoInverse(measurement::CalcSensorJacobian(measurement.outputs, c.p_WXo_));
+      Q = measurement::PseudoInverse(measurement::CalcImpactJacobian(measurement.inputs, c.p_WXo_).transpose());
+      for (int k = 0; k < nf; ++k) c.measured_[k] = projection.frf[rows[k]];
+    } else {
+      for (int k = 0; k < nf; ++k) c.measured_[k] = measurement.frf[rows[k]];
+    }
+    for (int k = 0; k < 6; ++k) {
+      c.output_names_.push_back(std::string(kDofNames[k]));
+      c.input_names_.push_back(kWrenchNames[k]);
+    }
+    // Weights: propagate the raw noise through the projection (header).
+    for (int k = 0; k < nf; ++k) {
+      Eigen::MatrixXd w = Eigen::MatrixXd::Ones(6, 6);
+      if (use_coherence) {
+        const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
+        Eigen::MatrixXd var_L(measurement.num_outputs(), measurement.num_inputs());
+        for (int o = 0; o < var_L.rows(); ++o) {
+          for (int i = 0; i < var_L.cols(); ++i) {
+            const double snr = raw_snr(k, o, i);
+            var_L(o, i) = snr == 0.0 ? std::numeric_limits<double>::infinity()
+                                     : std::norm(H_L(o, i)) / (snr * snr);
+          }
+        }
+        Eigen::MatrixXd var_X;
+        if (projected) {
+          var_X = var_L;
+        } else {
+          var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
+        }
+        for (int a = 0; a < 6; ++a) {
+          for (int b = 0; b < 6; ++b) {
+            const double sigma = std::sqrt(var_X(a, b));
+            const double snr = sigma == 0.0 ? std::numeric_limits<double>::infinity()
+                                            : std::abs(c.measured_[k](a, b)) / sigma;
+            w(a, b) = std::isfinite(sigma) ? std::min(snr, cap) : 0.0;
+          }
+        }
+      }
+      c.weights_[k] = w;
+    }
+    // Model side: motion of the point p_WXo of {X}'s body under a wrench there, W axes.
+    for (int k = 0; k < 6; ++k) {
+      model::InputSpec in;
+      in.kind = k < 3 ? model::InputSpec::Kind::kForce : model::InputSpec::Kind::kTorque;
+      in.name = kWrenchNames[k];
+      in.body = X.body;
+      in.position_W = c.p_WXo_;
+      in.direction_W = Eigen::Vector3d::Unit(k % 3);
+      c.model_inputs_.push_back(in);
+      model::OutputSpec out;
+      out.kind = model::OutputSpec::Kind::kFrameMotion;
+      out.name = std::string(kDofNames[k]);
+      out.body = X.body;
+      out.position_W = c.p_WXo_;
+      out.dof = static_cast<Dof>(k);
+      c.model_outputs_.push_back(out);
+    }
+  } else {
+    if (!HasAllGeometry(measurement)) {
+      throw InputError(where + ": sensor_body/impact_body: the raw comparison needs the geometry (body, "
+                       "position, direction) of every channel to place them on the model");
+    }
+    for (const auto& ch : measurement.outputs) {
+      c.output_names_.push_back(ch.name);
+      model::OutputSpec out;
+      out.kind = model::OutputSpec::Kind::kSensor;
+      out.name = ch.name;
+      out.body = ch.body;
+      out.position_W = ch.position_W;
+      out.direction_W = ch.direction_W;
+      c.model_outputs_.push_back(out);
+    }
+    for (const auto& ch : measurement.inputs) {
+      c.input_names_.push_back(ch.name);
+      model::InputSpec in;
+      in.kind = model::InputSpec::Kind::kForce;
+      in.name = ch.name;
+      in.body = ch.body;
+      in.position_W = ch.position_W;
+      in.direction_W = ch.direction_W;
+      c.model_inputs_.push_back(in);
+    }
+    for (int k = 0; k < nf; ++k) {
+      c.measured_[k] = measurement.frf[rows[k]];
+      Eigen::MatrixXd w(measurement.num_outputs(), measurement.num_inputs());
+      for (int o = 0; o < w.rows(); ++o) {
+        for (int i = 0; i < w.cols(); ++i) w(o, i) = std::min(raw_snr(k, o, i), cap);
+      }
+      c.weights_[k] = w;
+    }
+  }
+
+  // Convert to the comparison quantity.
+  if (c.quantity_ != measurement.quantity) {
+    for (int k = 0; k < nf; ++k) {
+      c.measured_[k] *= measurement::ConversionFactor(c.frequency_hz_(k), measurement.quantity, c.quantity_);
+    }
+  }
+
+  // Significance (header).
+  const int no = c.num_outputs(), ni = c.num_inputs();
+  Eigen::MatrixXd mean_log = Eigen::MatrixXd::Zero(no, ni);
+  for (int k = 0; k < nf; ++k) {
+    for (int o = 0; o < no; ++o) {
+      for (int i = 0; i < ni; ++i) mean_log(o, i) += SafeLogAbs(c.measured_[k](o, i)) / nf;
+    }
+  }
+  c.significance_.resize(no, ni);
+  if (c.space_ == ComparisonSpace::kCompliance) {
+    for (int o = 0; o < no; ++o) {
+      for (int i = 0; i < ni; ++i) {
+        c.significance_(o, i) = std::exp(mean_log(o, i) - 0.5 * (mean_log(o, o) + mean_log(i, i)));
+      }
+    }
+  } else {
+    const Eigen::VectorXd row_max = mean_log.rowwise().maxCoeff();
+    const Eigen::RowVectorXd col_max = mean_log.colwise().maxCoeff();
+    for (int o = 0; o < no; ++o) {
+      for (int i = 0; i < ni; ++i) {
+        c.significance_(o, i) = std::exp(mean_log(o, i) - 0.5 * (row_max(o) + col_max(i)));
+      }
+    }
+  }
+  for (int o = 0; o < no; ++o) {
+    for (int i = 0; i < ni; ++i) {
+      if (c.significance_(o, i) >= options.significance_threshold && c.significance_(o, i) > 0.0) {
+        c.used_elements_.push_back({o, i});
+      }
+    }
+  }
+
+  // Points.
+  double sum_w2 = 0.0;
+  for (int e = 0; e < static_cast<int>(c.used_elements_.size()); ++e) {
+    const ElementIndex idx = c.used_elements_[e];
+    for (int k = 0; k < nf; ++k) {
+      const double w = c.weights_[k](idx.output, idx.input);
+      if (w > 0.0 && std::abs(c.measured_[k](idx.output, idx.input)) > 0.0) {
+        c.points_.push_back({e, k, w});
+        sum_w2 += w * w;
+      }
+    }
+  }
+  // Unused points carry weight 0 in the published weights.
+  Eigen::MatrixXi used = Eigen::MatrixXi::Zero(no, ni);
+  for (const auto& idx : c.used_elements_) used(idx.output, idx.input) = 1;
+  for (int k = 0; k < nf; ++k) {
+    for (int o = 0; o < no; ++o) {
+      for (int i = 0; i < ni; ++i) {
+        if (!used(o, i) || std::abs(c.measured_[k](o, i)) == 0.0) c.weights_[k](o, i) = 0.0;
+      }
+    }
+  }
+  if (c.points_.empty() || !(sum_w2 > 0.0)) {
+    throw InputError(where + ": no significant element with a usable point in the band (threshold " +
+                     std::to_string(options.significance_threshold) + ", coherence weights)");
+  }
+  c.weight_norm_ = std::sqrt(sum_w2);
+
+  // Fail early when the model cannot carry the channels.
+  const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
+  c.BuildModelSystem(assembled);
+  return c;
+}
+
+model::SecondOrderSystem Comparison::BuildModelSystem(const model::AssembledModel& model) const {
+  return model::BuildSystem(model, model_inputs_, model_outputs_);
+}
+
+std::vector<Eigen::MatrixXcd> Comparison::EvaluateModel(const model::ModelSpec& spec) const {
+  const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
+  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
+  const response::FrfArray frf = evaluator.Evaluate(frequency_hz_, ToResponseQuantity(quantity_));
+  std::vector<Eigen::MatrixXcd> out(num_frequencies());
+  for (int k = 0; k < num_frequencies(); ++k) out[k] = frf.At(k);
+  return out;
+}
+
+void Comparison::CalcLogErrors(const Eigen::MatrixXcd& model_values, Eigen::VectorXcd* e) const {
+  e->resize(num_points());
+  const int no = num_outputs();
+  for (int p = 0; p < num_points(); ++p) {
+    const Point& pt = points_[p];
+    const ElementIndex idx = used_elements_[pt.element];
+    const std::complex<double> h_model = model_values(pt.frequency, idx.output + no * idx.input);
+    const std::complex<double> h_meas = measured_[pt.frequency](idx.output, idx.input);
+    const std::complex<double> value = std::log(h_model / h_meas);
+    if (!std::isfinite(value.real()) || !std::isfinite(value.imag())) {
+      std::ostringstream msg;
+      msg << "comparison with '" << source_ << "': the model's response " << ElementName(idx) << " at "
+          << frequency_hz_(pt.frequency) << " Hz is " << h_model << ", expected finite and non-zero";
+      throw NumericalError(msg.str());
+    }
+    (*e)(p) = value;
+  }
+}
+
+void Comparison::Residuals(const model::ModelSpec& spec, Eigen::VectorXd* r) const {
+  ResidualsAndJacobian(spec, {}, r, nullptr);
+}
+
+double Comparison::Error(const model::ModelSpec& spec) const {
+  Eigen::VectorXd r;
+  Residuals(spec, &r);
+  return r.norm();
+}
+
+void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
+                                      const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
+                                      Eigen::MatrixXd* J) const {
+  STAGEFIT_ASSERT(r != nullptr, "r must not be null");
+  const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
+  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
+  const auto quantity = ToResponseQuantity(quantity_);
+  const int np = num_points();
+  const bool want_jacobian = J != nullptr && !params.empty();
+
+  response::FrfWithDerivatives frf;
+  if (want_jacobian) {
+    frf = evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, params, assembled);
+  } else {
+    frf.frf = evaluator.Evaluate(frequency_hz_, quantity);
+  }
+  Eigen::VectorXcd e;
+  CalcLogErrors(frf.frf.values, &e);
+  r->resize(2 * np);
+  for (int p = 0; p < np; ++p) {
+    const std::complex<double> we = points_[p].weight * e(p) / weight_norm_;
+    (*r)(p) = we.real();
+    (*r)(np + p) = we.imag();
+  }
+  if (J == nullptr) return;
+  J->setZero(2 * np, static_cast<int>(params.size()));
+  if (!want_jacobian) return;
+  const int no = num_outputs();
+  for (int k = 0; k < static_cast<int>(params.size()); ++k) {
+    const Eigen::MatrixXcd& dH = frf.derivatives[k];
+    for (int p = 0; p < np; ++p) {
+      const Point& pt = points_[p];
+      const ElementIndex idx = used_elements_[pt.element];
+      const int column = idx.output + no * idx.input;
+      const std::complex<double> de = dH(pt.frequency, column) / frf.frf.values(pt.frequency, column);
+      const std::complex<double> wde = pt.weight * de / weight_norm_;
+      (*J)(p, k) = wde.real();
+      (*J)(np + p, k) = wde.imag();
+    }
+  }
+}
+
+ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
+  ComparisonResult result;
+  result.model = EvaluateModel(spec);
+  const int no = num_outputs();
+  const int nf = num_frequencies();
+  Eigen::MatrixXcd values(nf, no * num_inputs());
+  for (int k = 0; k < nf; ++k) {
+    for (int i = 0; i < num_inputs(); ++i) values.row(k).segment(no * i, no) = result.model[k].col(i).transpose();
+  }
+  Eigen::VectorXcd e;
+  CalcLogErrors(values, &e);
+
+  const auto bands = measurement::MakeFractionalOctaveBands(frequency_hz_(0), frequency_hz_(nf - 1),
+                                                            bands_per_octave_);
+  const int ne = static_cast<int>(used_elements_.size());
+  const int nb_all = static_cast<int>(bands.size());
+  std::vector<int> band_of(nf, -1);
+  for (int k = 0; k < nf; ++k) {
+    for (int b = 0; b < nb_all; ++b) {
+      if (frequency_hz_(k) >= bands[b].low_hz &&
+          (frequency_hz_(k) < bands[b].high_hz || b == nb_all - 1)) {
+        band_of[k] = b;
+        break;
+      }
+    }
+  }
+  Eigen::MatrixXd num = Eigen::MatrixXd::Zero(ne, nb_all), den = Eigen::MatrixXd::Zero(ne, nb_all);
+  Eigen::MatrixXi count = Eigen::MatrixXi::Zero(ne, nb_all);
+  Eigen::VectorXd mean_re = Eigen::VectorXd::Zero(ne), mean_im = Eigen::VectorXd::Zero(ne);
+  for (int p = 0; p < num_points(); ++p) {
+    const Point& pt = points_[p];
+    const int b = band_of[pt.frequency];
+    STAGEFIT_ASSERT(b >= 0, "frequency outside every band");
+    const double w2 = pt.weight * pt.weight;
+    num(pt.element, b) += w2 * std::norm(e(p));
+    den(pt.element, b) += w2;
+    count(pt.element, b) += 1;
+    mean_re(pt.element) += w2 * e(p).real();
+    mean_im(pt.element) += w2 * e(p).imag();
+  }
+  const double total_num = num.sum();
+  const double total_den = den.sum();
+  result.error = std::sqrt(total_num / total_den);
+
+  for (int k = 0; k < ne; ++k) {
+    ElementError el;
+    el.index = used_elements_[k];
+    el.name = ElementName(el.index);
+    el.significance = significance_(el.index.output, el.index.input);
+    el.num_points = count.row(k).sum();
+    const double d = den.row(k).sum();
+    el.error = d > 0 ? std::sqrt(num.row(k).sum() / d) : 0.0;
+    el.share = total_num > 0 ? num.row(k).sum() / total_num : 0.0;
+    el.mean_log_magnitude = d > 0 ? mean_re(k) / d : 0.0;
+    el.mean_phase_rad = d > 0 ? mean_im(k) / d : 0.0;
+    result.elements.push_back(el);
+  }
+  std::vector<int> kept;
+  for (int b = 0; b < nb_all; ++b) {
+    if (count.col(b).sum() == 0) continue;
+    kept.push_back(b);
+    BandError be;
+    be.band = bands[b];
+    be.num_points = count.col(b).sum();
+    be.error = std::sqrt(num.col(b).sum() / den.col(b).sum());
+    be.share = total_num > 0 ? num.col(b).sum() / total_num : 0.0;
+    result.bands.push_back(be);
+  }
+  result.element_band_error.resize(ne, static_cast<int>(kept.size()));
+  for (int k = 0; k < ne; ++k) {
+    for (int j = 0; j < static_cast<int>(kept.size()); ++j) {
+      const int b = kept[j];
+      result.element_band_error(k, j) =
+          count(k, b) > 0 ? std::sqrt(num(k, b) / den(k, b)) : std::numeric_limits<double>::quiet_NaN();
+    }
+  }
+  return result;
+}
+
+std::string ComparisonResult::BriefReport(int max_rows) const {
+  std::ostringstream out;
+  char line[256];
+  std::snprintf(line, sizeof line, "error = %.5f  (%zu elements, %zu bands)\n", error, elements.size(),
+                bands.size());
+  out << line;
+  std::vector<int> order(elements.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return elements[a].share > elements[b].share; });
+  out << "worst elements:\n";
+  std::snprintf(line, sizeof line, "  %-14s %9s %8s %11s %11s %7s\n", "element", "error", "share", "ln|ratio|",
+                "phase[deg]", "kappa");
+  out << line;
+  for (int k = 0; k < std::min<int>(max_rows, static_cast<int>(order.size())); ++k) {
+    const ElementError& el = elements[order[k]];
+    std::snprintf(line, sizeof line, "  %-14s %9.4f %7.1f%% %11.4f %11.2f %7.3f\n", el.name.c_str(), el.error,
+                  100 * el.share, el.mean_log_magnitude, el.mean_phase_rad * kDegreesPerRadian, el.significance);
+    out << line;
+  }
+  std::vector<int> border(bands.size());
+  for (size_t k = 0; k < border.size(); ++k) border[k] = static_cast<int>(k);
+  std::sort(border.begin(), border.end(), [&](int a, int b) { return bands[a].share > bands[b].share; });
+  out << "worst bands:\n";
+  std::snprintf(line, sizeof line, "  %-22s %9s %8s %7s\n", "band [Hz]", "error", "share", "points");
+  out << line;
+  for (int k = 0; k < std::min<int>(max_rows, static_cast<int>(border.size())); ++k) {
+    const BandError& b = bands[border[k]];
+    char range[64];
+    std::snprintf(range, sizeof range, "%.4g - %.4g", b.band.low_hz, b.band.high_hz);
+    std::snprintf(line, sizeof line, "  %-22s %9.4f %7.1f%% %7d\n", range, b.error, 100 * b.share, b.num_points);
+    out << line;
+  }
+  return out.str();
+}
+
+}  // namespace stagefit::compare

@@ -1,0 +1,724 @@
+#include "stagefit/fit/least_squares.h"
+
+#include <ceres/ceres.h>
+#include <nlopt.h>
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include "stagefit/common/error.h"
+
+namespace stagefit::fit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A component of a null-space direction above this marks a parameter as undetermined.
+constexpr double kNullSpaceComponent = 1e-2;
+// A parameter within this (relative, in theta) of a bound is reported at the bound.
+constexpr double kAtBoundTolerance = 1e-6;
+// Relative rounding allowance between the cost of NLopt (||r||^2 / 2 summed here) and that of Ceres.
+constexpr double kPolishCostSlack = 1e-9;
+
+std::string Format(const char* format, double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), format, value);
+  return buffer;
+}
+
+// The map between the natural parameters p and the optimisation variables theta.
+struct ParameterMap {
+  std::vector<ParameterSpec> specs;
+
+  int size() const { return static_cast<int>(specs.size()); }
+  double ToTheta(int i, double p) const { return specs[i].log_scale ? std::log(p) : p; }
+  double ToP(int i, double theta) const { return specs[i].log_scale ? std::exp(theta) : theta; }
+  Eigen::VectorXd ToTheta(const Eigen::VectorXd& p) const {
+    Eigen::VectorXd theta(p.size());
+    for (int i = 0; i < size(); ++i) theta[i] = ToTheta(i, p[i]);
+    return theta;
+  }
+  Eigen::VectorXd ToP(const double* theta) const {
+    Eigen::VectorXd p(size());
+    for (int i = 0; i < size(); ++i) p[i] = ToP(i, theta[i]);
+    return p;
+  }
+  // dp/dtheta.
+  Eigen::VectorXd Scale(const Eigen::VectorXd& p) const {
+    Eigen::VectorXd d(size());
+    for (int i = 0; i < size(); ++i) d[i] = specs[i].log_scale ? p[i] : 1.0;
+    return d;
+  }
+  double LowerTheta(int i) const {
+    const double lo = specs[i].lower;
+    if (specs[i].log_scale) return lo > 0.0 ? std::log(lo) : -kInf;
+    return lo;
+  }
+  double UpperTheta(int i) const {
+    const double hi = specs[i].upper;
+    if (specs[i].log_scale) return std::isfinite(hi) ? std::log(hi) : kInf;
+    return hi;
+  }
+};
+
+// Shared state of the cost functions: the problem, the map and an evaluation counter.
+struct EvaluationContext {
+  const LeastSquaresProblem* problem = nullptr;
+  ParameterMap map;
+  mutable int num_evaluations = 0;
+};
+
+bool AllFinite(const Eigen::VectorXd& v) { return v.allFinite(); }
+
+// r(theta), and dr/dtheta from the problem's analytic Jacobian and the chain rule.
+class AnalyticCost final : public ceres::CostFunction {
+ public:
+  explicit AnalyticCost(const EvaluationContext* context) : context_(context) {
+    set_num_residuals(context->problem->num_residuals());
+    mutable_parameter_block_sizes()->push_back(context->problem->num_parameters());
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const int n = context_->map.size();
+    const int m = num_residuals();
+    const Eigen::VectorXd p = context_->map.ToP(parameters[0]);
+    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    ++context_->num_evaluations;
+    if (!context_->problem->Evaluate(p, &r_, want_jacobian ? &J_ : nullptr)) return false;
+    STAGEFIT_ASSERT(r_.size() == m, "the problem returned " << r_.size() << " residuals, expected " << m);
+    if (!AllFinite(r_)) return false;
+    Eigen::Map<Eigen::VectorXd>(residuals, m) = r_;
+    if (want_jacobian) {
+      STAGEFIT_ASSERT(J_.rows() == m && J_.cols() == n,
+                      "the problem returned a " << J_.rows() << " x " << J_.cols() << " Jacobian, expected "
+                                                << m << " x " << n);
+      if (!J_.allFinite()) return false;
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobians[0], m, n) =
+          J_ * context_->map.Scale(p).asDiagonal();
+    }
+    return true;
+  }
+
+ private:
+  const EvaluationContext* context_;
+  mutable Eigen::VectorXd r_;
+  mutable Eigen::MatrixXd J_;
+};
+
+// r(theta) alone, for ceres::DynamicNumericDiffCostFunction.
+struct ResidualFunctor {
+  const EvaluationContext* context;
+  bool operator()(double const* const* parameters, double* residuals) const {
+    ++context->num_evaluations;
+    Eigen::VectorXd r;
+    if (!context->problem->Evaluate(context->map.ToP(parameters[0]), &r, nullptr)) return false;
+    if (r.size() != context->problem->num_residuals() || !AllFinite(r)) return false;
+    Eigen::Map<Eigen::VectorXd>(residuals, r.size()) = r;
+    return true;
+  }
+};
+
+std::unique_ptr<ceres::CostFunction> MakeCostFunction(const EvaluationContext* context, JacobianKind kind) {
+  if (kind == JacobianKind::kAnalytic) return std::make_unique<AnalyticCost>(context);
+  auto cost = std::make_unique<ceres::DynamicNumericDiffCostFunction<ResidualFunctor, ceres::CENTRAL>>(
+      new ResidualFunctor{context});
+  cost->AddParameterBlock(context->map.size());
+  cost->SetNumResiduals(context->problem->num_residuals());
+  return cost;
+}
+
+// Residuals and (optionally) the Jacobian dr/dtheta through a cost function.
+bool EvaluateTheta(const ceres::CostFunction& cost, const Eigen::VectorXd& theta, Eigen::VectorXd* r,
+                   Eigen::MatrixXd* J_theta) {
+  const int m = cost.num_residuals();
+  const int n = static_cast<int>(theta.size());
+  r->resize(m);
+  const double* parameters[] = {theta.data()};
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J_row;
+  double* jacobians[] = {nullptr};
+  if (J_theta != nullptr) {
+    J_row.resize(m, n);
+    jacobians[0] = J_row.data();
+  }
+  if (!cost.Evaluate(parameters, r->data(), J_theta != nullptr ? jacobians : nullptr)) return false;
+  if (J_theta != nullptr) *J_theta = J_row;
+  return r->allFinite();
+}
+
+struct StageResult {
+  Eigen::VectorXd theta;
+  double cost = kNaN;
+  FitStatus status = FitStatus::kFailed;
+  int iterations = 0;
+  std::string message;
+};
+
+class ProgressCallback final : public ceres::IterationCallback {
+ public:
+  ProgressCallback(const FitOptions& options, FitProgress base, Clock::time_point t0)
+      : options_(options), base_(std::move(base)), t0_(t0) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    FitProgress progress = base_;
+    progress.iteration = summary.iteration;
+    progress.cost = summary.cost;
+    progress.elapsed_s = std::chrono::duration<double>(Clock::now() - t0_).count();
+    options_.progress(progress);
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const FitOptions& options_;
+  FitProgress base_;
+  Clock::time_point t0_;
+};
+
+StageResult RunCeres(const ceres::CostFunction& cost, const ParameterMap& map, const Eigen::VectorXd& theta0,
+                     const FitOptions& options, const FitProgress& base, Clock::time_point t0) {
+  StageResult result;
+  result.theta = theta0;
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  problem.AddResidualBlock(const_cast<ceres::CostFunction*>(&cost), nullptr, result.theta.data());
+  for (int i = 0; i < map.size(); ++i) {
+    if (std::isfinite(map.LowerTheta(i))) problem.SetParameterLowerBound(result.theta.data(), i, map.LowerTheta(i));
+    if (std::isfinite(map.UpperTheta(i))) problem.SetParameterUpperBound(result.theta.data(), i, map.UpperTheta(i));
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  solver_options.num_threads = 1;
+  std::unique_ptr<ProgressCallback> callback;
+  if (options.progress) {
+    callback = std::make_unique<ProgressCallback>(options, base, t0);
+    solver_options.callbacks.push_back(callback.get());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
+  result.message = "ceres: " + summary.message;
+  switch (summary.termination_type) {
+    case ceres::CONVERGENCE:
+    case ceres::USER_SUCCESS:
+      result.status = FitStatus::kConverged;
+      break;
+    case ceres::NO_CONVERGENCE:
+      result.status = FitStatus::kMaxIterations;
+      break;
+    default:
+      result.status = FitStatus::kFailed;
+      break;
+  }
+  result.cost = summary.IsSolutionUsable() && std::isfinite(summary.final_cost) ? summary.final_cost : kNaN;
+  return result;
+}
+
+struct NloptContext {
+  const ceres::CostFunction* cost = nullptr;
+  const FitOptions* options = nullptr;
+  FitProgress base;
+  Clock::time_point t0;
+  int evaluations = 0;
+  double best = kInf;
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+};
+
+double NloptObjective(unsigned n, const double* x, double* grad, void* data) {
+  auto* context = static_cast<NloptContext*>(data);
+  const Eigen::VectorXd theta = Eigen::Map<const Eigen::VectorXd>(x, n);
+  ++context->evaluations;
+  if (!EvaluateTheta(*context->cost, theta, &context->r, grad != nullptr ? &context->J : nullptr)) {
+    if (grad != nullptr) std::fill(grad, grad + n, 0.0);
+    return kInf;
+  }
+  const double f = context->r.squaredNorm();
+  if (grad != nullptr) Eigen::Map<Eigen::VectorXd>(grad, n) = 2.0 * context->J.transpose() * context->r;
+  context->best = std::min(context->best, 0.5 * f);
+  if (context->options->progress) {
+    FitProgress progress = context->base;
+    progress.iteration = context->evaluations;
+    progress.cost = 0.5 * f;
+    progress.elapsed_s = std::chrono::duration<double>(Clock::now() - context->t0).count();
+    context->options->progress(progress);
+  }
+  return f;
+}
+
+nlopt_algorithm LookUpNloptAlgorithm(const std::string& name, const std::string& context) {
+  std::string bare = name;
+  if (bare.rfind("NLOPT_", 0) == 0) bare = bare.substr(6);
+  const nlopt_algorithm algorithm = nlopt_algorithm_from_string(bare.c_str());
+  if (static_cast<int>(algorithm) < 0) {
+    throw InputError(context + " = '" + name +
+                     "' is not an NLopt algorithm, expected a name such as LN_BOBYQA, LN_SBPLX, LN_NELDERMEAD, "
+                     "LN_COBYLA, GN_CRS2_LM, GN_DIRECT, GN_ISRES, LD_LBFGS, LD_SLSQP");
+  }
+  return algorithm;
+}
+
+bool IsGlobal(const std::string& name) {
+  std::string bare = name.rfind("NLOPT_", 0) == 0 ? name.substr(6) : name;
+  return bare.rfind("G", 0) == 0;
+}
+
+StageResult RunNlopt(const ceres::CostFunction& cost, const ParameterMap& map, const Eigen::VectorXd& theta0,
+                     const FitOptions& options, const FitProgress& base, Clock::time_point t0) {
+  const int n = map.size();
+  const nlopt_algorithm algorithm = LookUpNloptAlgorithm(options.nlopt_algorithm, "--nlopt-algorithm");
+  std::unique_ptr<nlopt_opt_s, void (*)(nlopt_opt)> opt(nlopt_create(algorithm, n), nlopt_destroy);
+  STAGEFIT_ASSERT(opt != nullptr, "nlopt_create failed");
+  std::vector<double> lower(n), upper(n), step(n);
+  for (int i = 0; i < n; ++i) {
+    lower[i] = map.LowerTheta(i);
+    upper[i] = map.UpperTheta(i);
+    // Initial step: 10 % of the value (0.1 in ln p), at most a quarter of the bound interval.
+    double s = map.specs[i].log_scale ? 0.1 : 0.1 * std::max(std::abs(theta0[i]), 1e-12);
+    if (std::isfinite(upper[i] - lower[i])) s = std::min(s, 0.25 * (upper[i] - lower[i]));
+    step[i] = s;
+  }
+  nlopt_set_lower_bounds(opt.get(), lower.data());
+  nlopt_set_upper_bounds(opt.get(), upper.data());
+  nlopt_set_initial_step(opt.get(), step.data());
+  nlopt_set_maxeval(opt.get(), options.nlopt_max_evaluations);
+  nlopt_set_ftol_rel(opt.get(), options.nlopt_relative_tolerance);
+  nlopt_set_xtol_rel(opt.get(), options.nlopt_relative_tolerance);
+  NloptContext context;
+  context.cost = &cost;
+  context.options = &options;
+  context.base = base;
+  context.base.stage = "nlopt";
+  context.t0 = t0;
+  nlopt_set_min_objective(opt.get(), NloptObjective, &context);
+  std::vector<double> x(theta0.data(), theta0.data() + n);
+  double f = kInf;
+  const nlopt_result code = nlopt_optimize(opt.get(), x.data(), &f);
+  StageResult result;
+  result.theta = Eigen::Map<Eigen::VectorXd>(x.data(), n);
+  result.iterations = context.evaluations;
+  result.cost = std::isfinite(f) ? 0.5 * f : kNaN;
+  result.message = std::string("nlopt ") + nlopt_algorithm_name(algorithm) + ": " + nlopt_result_to_string(code) +
+                   " after " + std::to_string(context.evaluations) + " evaluations";
+  if (code == NLOPT_MAXEVAL_REACHED || code == NLOPT_MAXTIME_REACHED) {
+    result.status = FitStatus::kMaxIterations;
+  } else if (code > 0) {
+    result.status = FitStatus::kConverged;
+  } else {
+    result.status = FitStatus::kFailed;
+  }
+  if (!std::isfinite(f)) result.status = FitStatus::kFailed;
+  return result;
+}
+
+void CheckParameters(const std::vector<ParameterSpec>& parameters) {
+  for (const auto& p : parameters) {
+    std::ostringstream where;
+    where << "parameter '" << p.name << "'";
+    if (!std::isfinite(p.initial)) throw InputError(where.str() + ": initial value is not finite");
+    if (!(p.lower <= p.upper)) {
+      throw InputError(where.str() + ": lower bound " + Format("%.6g", p.lower) + " > upper bound " +
+                       Format("%.6g", p.upper) + ", expected lower <= upper");
+    }
+    if (p.initial < p.lower || p.initial > p.upper) {
+      throw InputError(where.str() + ": initial value " + Format("%.6g", p.initial) + " " + p.unit +
+                       " is outside its bounds [" + Format("%.6g", p.lower) + ", " + Format("%.6g", p.upper) + "]");
+    }
+    if (p.log_scale && !(p.initial > 0.0)) {
+      throw InputError(where.str() + ": initial value " + Format("%.6g", p.initial) +
+                       " is not positive, expected > 0 for a log-scale parameter");
+    }
+    if (p.log_scale && p.lower < 0.0 && std::isfinite(p.lower)) {
+      throw InputError(where.str() + ": lower bound " + Format("%.6g", p.lower) +
+                       " is negative, expected >= 0 for a positive (log-scale) parameter");
+    }
+  }
+}
+
+// A uniform number in [0, 1) from 53 bits of the generator (the same on every standard library).
+double Uniform(std::mt19937_64& generator) {
+  return static_cast<double>(generator() >> 11) * 0x1.0p-53;
+}
+
+Eigen::VectorXd DrawStart(const ParameterMap& map, const Eigen::VectorXd& theta0, double factor,
+                          std::mt19937_64& generator) {
+  Eigen::VectorXd theta = theta0;
+  for (int i = 0; i < map.size(); ++i) {
+    double lo, hi;
+    if (map.specs[i].log_scale) {
+      lo = theta0[i] - std::log(factor);
+      hi = theta0[i] + std::log(factor);
+    } else {
+      const double half = (factor - 1.0) * std::abs(theta0[i]);
+      lo = theta0[i] - half;
+      hi = theta0[i] + half;
+    }
+    const double u = Uniform(generator);
+    theta[i] = std::clamp(lo + u * (hi - lo), map.LowerTheta(i), map.UpperTheta(i));
+  }
+  return theta;
+}
+
+// Covariance, correlation, sensitivities and identifiability warnings at the optimum.
+void AnalyseOptimum(const ceres::CostFunction& cost, const ParameterMap& map, const Eigen::VectorXd& theta,
+                    const FitOptions& options, FitSummary* summary) {
+  const int n = map.size();
+  const int m = summary->num_residuals;
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  summary->covariance = Eigen::MatrixXd::Constant(n, n, kNaN);
+  summary->correlation = Eigen::MatrixXd::Constant(n, n, kNaN);
+  if (n == 0) return;
+  if (!EvaluateTheta(cost, theta, &r, &J)) {
+    summary->warnings.push_back("the Jacobian cannot be evaluated at the optimum: no standard deviations");
+    for (auto& p : summary->parameters) p.std_dev = kNaN;
+    return;
+  }
+  const Eigen::VectorXd p = map.ToP(theta.data());
+  const Eigen::VectorXd scale = map.Scale(p);
+  summary->residual_variance = m > n ? r.squaredNorm() / (m - n) : kNaN;
+  if (m <= n) {
+    summary->warnings.push_back("as many parameters as residuals (" + std::to_string(n) + " >= " +
+                                std::to_string(m) + "): the residual variance and the standard deviations "
+                                "cannot be estimated");
+  }
+
+  const Eigen::VectorXd column_norm = J.colwise().norm().transpose();
+  const double max_norm = column_norm.maxCoeff();
+  std::vector<bool> undetermined(n, false);
+  Eigen::VectorXd inverse_norm(n);
+  for (int i = 0; i < n; ++i) {
+    summary->parameters[i].relative_sensitivity = max_norm > 0.0 ? column_norm[i] / max_norm : 0.0;
+    undetermined[i] = !(column_norm[i] > 0.0);
+    inverse_norm[i] = undetermined[i] ? 0.0 : 1.0 / column_norm[i];
+  }
+  const Eigen::MatrixXd Js = J * inverse_norm.asDiagonal();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  const Eigen::MatrixXd& V = svd.matrixV();
+  const double s_max = s.size() > 0 ? s[0] : 0.0;
+  Eigen::VectorXd inverse_s2 = Eigen::VectorXd::Zero(s.size());
+  for (int k = 0; k < s.size(); ++k) {
+    if (s[k] > kRankTolerance * s_max) {
+      inverse_s2[k] = 1.0 / (s[k] * s[k]);
+    } else {
+      for (int i = 0; i < n; ++i) {
+        if (std::abs(V(i, k)) > kNullSpaceComponent) undetermined[i] = true;
+      }
+    }
+  }
+  // Columns of J beyond its rank (m < n) have no singular value: their V components are missing.
+  const Eigen::MatrixXd cov_scaled = V * inverse_s2.asDiagonal() * V.transpose();
+  Eigen::MatrixXd cov_theta = inverse_norm.asDiagonal() * cov_scaled * inverse_norm.asDiagonal();
+  cov_theta *= summary->residual_variance;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      if (undetermined[i] || undetermined[j]) {
+        summary->covariance(i, j) = i == j ? kInf : kNaN;
+        summary->correlation(i, j) = i == j ? 1.0 : kNaN;
+      } else {
+        summary->covariance(i, j) = scale[i] * cov_theta(i, j) * scale[j];
+        summary->correlation(i, j) = cov_theta(i, j) / std::sqrt(cov_theta(i, i) * cov_theta(j, j));
+      }
+    }
+  }
+
+  for (int i = 0; i < n; ++i) {
+    ParameterEstimate& e = summary->parameters[i];
+    e.std_dev = std::sqrt(summary->covariance(i, i));
+    const double lo = map.LowerTheta(i), hi = map.UpperTheta(i);
+    const double tol = kAtBoundTolerance * std::max(1.0, std::abs(theta[i]));
+    e.at_bound = (std::isfinite(lo) && theta[i] - lo <= tol) || (std::isfinite(hi) && hi - theta[i] <= tol);
+    if (e.relative_sensitivity < options.min_relative_sensitivity) {
+      e.identifiable = false;
+      summary->warnings.push_back(e.name + ": the data barely sense it (relative sensitivity " +
+                                  Format("%.2g", e.relative_sensitivity) + " < " +
+                                  Format("%.2g", options.min_relative_sensitivity) + " of the most sensed)");
+    }
+    if (undetermined[i]) {
+      e.identifiable = false;
+      summary->warnings.push_back(e.name + ": undetermined (J'J is singular in its direction)");
+    } else if (std::isfinite(e.std_dev) && e.std_dev > options.max_relative_std * std::abs(e.value)) {
+      e.identifiable = false;
+      summary->warnings.push_back(e.name + ": relative standard deviation " +
+                                  Format("%.3g", e.std_dev / std::abs(e.value)) + " > " +
+                                  Format("%.3g", options.max_relative_std));
+    }
+    if (e.at_bound) {
+      summary->warnings.push_back(e.name + ": ended at a bound (" + Format("%.6g", e.value) + " " + e.unit +
+                                  " in [" + Format("%.6g", e.lower) + ", " + Format("%.6g", e.upper) +
+                                  "]); its standard deviation ignores the bound");
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      const double c = summary->correlation(i, j);
+      if (std::isfinite(c) && std::abs(c) > options.max_correlation) {
+        summary->parameters[i].identifiable = false;
+        summary->parameters[j].identifiable = false;
+        summary->warnings.push_back(summary->parameters[i].name + " and " + summary->parameters[j].name +
+                                    " are correlated (" + Format("%+.3f", c) + ", |c| > " +
+                                    Format("%.2f", options.max_correlation) +
+                                    "): the data determine a combination of the two");
+      }
+    }
+  }
+}
+
+}  // namespace
+
+SolverKind ParseSolverKind(const std::string& text, const std::string& context) {
+  if (text == "ceres") return SolverKind::kCeres;
+  if (text == "nlopt") return SolverKind::kNlopt;
+  throw InputError(context + " = '" + text + "', expected ceres or nlopt");
+}
+
+JacobianKind ParseJacobianKind(const std::string& text, const std::string& context) {
+  if (text == "analytic") return JacobianKind::kAnalytic;
+  if (text == "finite-difference") return JacobianKind::kFiniteDifference;
+  throw InputError(context + " = '" + text + "', expected analytic or finite-difference");
+}
+
+std::string ToString(SolverKind kind) { return kind == SolverKind::kCeres ? "ceres" : "nlopt"; }
+std::string ToString(JacobianKind kind) {
+  return kind == JacobianKind::kAnalytic ? "analytic" : "finite-difference";
+}
+
+std::string ToString(FitStatus status) {
+  switch (status) {
+    case FitStatus::kConverged:
+      return "converged";
+    case FitStatus::kMaxIterations:
+      return "max_iterations";
+    case FitStatus::kFailed:
+      return "failed";
+  }
+  return "failed";
+}
+
+void CheckNloptAlgorithm(const std::string& name, const std::string& context) {
+  LookUpNloptAlgorithm(name, context);
+}
+
+Eigen::VectorXd FitSummary::values() const {
+  Eigen::VectorXd v(parameters.size());
+  for (size_t i = 0; i < parameters.size(); ++i) v[i] = parameters[i].value;
+  return v;
+}
+
+std::string FitSummary::BriefReport() const {
+  char line[256];
+  std::snprintf(line, sizeof(line), "fit %s: error %.6g -> %.6g (%d parameters, %d iterations, %.3g s%s%s)",
+                ToString(status).c_str(), initial_error, final_error, num_parameters, iterations, time_s,
+                warnings.empty() ? "" : ", ",
+                warnings.empty() ? "" : (std::to_string(warnings.size()) + " warnings").c_str());
+  return line;
+}
+
+std::string FitSummary::FullReport() const {
+  std::ostringstream out;
+  out << "Solver:      " << solver << "\n";
+  out << "Status:      " << ToString(status) << " (" << message << ")\n";
+  out << "Residuals:   " << num_residuals << ", parameters: " << num_parameters << "\n";
+  char line[512];
+  std::snprintf(line, sizeof(line), "Error:       %.6g -> %.6g   (cost %.6g -> %.6g)\n", initial_error, final_error,
+                initial_cost, final_cost);
+  out << line;
+  std::snprintf(line, sizeof(line), "Iterations:  %d, evaluations: %d, time: %.3g s, sigma^2 = %.3g\n", iterations,
+                num_evaluations, time_s, residual_variance);
+  out << line;
+  size_t width = 9;
+  for (const auto& p : parameters) width = std::max(width, p.name.size());
+  std::snprintf(line, sizeof(line), "%-*s %13s %13s %11s %8s  %-8s %s\n", static_cast<int>(width), "parameter",
+                "initial", "value", "std", "std/val", "unit", "flags");
+  out << line;
+  for (const auto& p : parameters) {
+    std::string flags;
+    if (!p.identifiable) flags += "unidentifiable ";
+    if (p.at_bound) flags += "at-bound ";
+    std::snprintf(line, sizeof(line), "%-*s %13.6g %13.6g %11.3g %8.3g  %-8s %s\n", static_cast<int>(width),
+                  p.name.c_str(), p.initial, p.value, p.std_dev, p.std_dev / std::abs(p.value), p.unit.c_str(),
+                  flags.c_str());
+    out << line;
+  }
+  if (starts.size() > 1) {
+    std::vector<double> errors;
+    int failed = 0;
+    for (const auto& s : starts) {
+      if (std::isfinite(s.final_cost)) {
+        errors.push_back(std::sqrt(2.0 * s.final_cost));
+      } else {
+        ++failed;
+      }
+    }
+    std::sort(errors.begin(), errors.end());
+    if (!errors.empty()) {
+      const double best = errors.front();
+      const auto near = std::count_if(errors.begin(), errors.end(), [&](double e) { return e <= 1.01 * best; });
+      std::snprintf(line, sizeof(line),
+                    "Starts:      %zu (best #%d); final error min %.6g, median %.6g, max %.6g; %ld within 1 %% of "
+                    "the best; %d failed\n",
+                    starts.size(), best_start, best, errors[errors.size() / 2], errors.back(),
+                    static_cast<long>(near), failed);
+      out << line;
+    }
+  }
+  for (const auto& w : warnings) out << "warning: " << w << "\n";
+  return out.str();
+}
+
+FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
+                 const FitOptions& options) {
+  const auto t0 = Clock::now();
+  const int n = problem.num_parameters();
+  if (static_cast<int>(parameters.size()) != n) {
+    throw InputError("fit: " + std::to_string(parameters.size()) + " parameter specifications for a problem of " +
+                     std::to_string(n) + " parameters");
+  }
+  CheckParameters(parameters);
+  if (options.jacobian == JacobianKind::kAnalytic && !problem.has_jacobian()) {
+    throw InputError("fit: an analytic Jacobian was requested from a problem that has none; use finite-difference");
+  }
+  if (options.num_starts < 1) {
+    throw InputError("fit: starts = " + std::to_string(options.num_starts) + ", expected >= 1");
+  }
+  if (!(options.start_factor >= 1.0)) {
+    throw InputError("fit: start factor = " + Format("%.6g", options.start_factor) + ", expected >= 1");
+  }
+  if (options.max_iterations < 1) {
+    throw InputError("fit: max iterations = " + std::to_string(options.max_iterations) + ", expected >= 1");
+  }
+
+  EvaluationContext context;
+  context.problem = &problem;
+  context.map.specs = parameters;
+  const ParameterMap& map = context.map;
+  if (options.solver == SolverKind::kNlopt) {
+    LookUpNloptAlgorithm(options.nlopt_algorithm, "--nlopt-algorithm");
+    if (IsGlobal(options.nlopt_algorithm)) {
+      for (int i = 0; i < n; ++i) {
+        if (!std::isfinite(map.LowerTheta(i)) || !std::isfinite(map.UpperTheta(i))) {
+          throw InputError("fit: the global NLopt algorithm " + options.nlopt_algorithm + " needs finite bounds; '" +
+                           parameters[i].name + "' has none (give bounds for it)");
+        }
+      }
+    }
+  }
+  const std::unique_ptr<ceres::CostFunction> cost = MakeCostFunction(&context, options.jacobian);
+
+  FitSummary summary;
+  summary.num_parameters = n;
+  summary.num_residuals = problem.num_residuals();
+  summary.solver = options.solver == SolverKind::kCeres
+                       ? "ceres (Levenberg-Marquardt, DENSE_QR, " + ToString(options.jacobian) + " Jacobian)"
+                       : "nlopt " + options.nlopt_algorithm +
+                             (options.nlopt_polish ? " + ceres polish (" + ToString(options.jacobian) + " Jacobian)"
+                                                   : std::string());
+  if (options.num_starts > 1) summary.solver += ", " + std::to_string(options.num_starts) + " starts";
+
+  Eigen::VectorXd p0(n);
+  for (int i = 0; i < n; ++i) p0[i] = parameters[i].initial;
+  const Eigen::VectorXd theta0 = map.ToTheta(p0);
+  std::mt19937_64 generator(options.seed);
+
+  double best_cost = kInf;
+  StageResult best;
+  best.theta = theta0;
+  for (int start = 0; start < options.num_starts; ++start) {
+    const Eigen::VectorXd theta_start = start == 0 ? theta0 : DrawStart(map, theta0, options.start_factor, generator);
+    StartOutcome outcome;
+    outcome.initial = map.ToP(theta_start.data());
+    Eigen::VectorXd r;
+    outcome.initial_cost = EvaluateTheta(*cost, theta_start, &r, nullptr) ? 0.5 * r.squaredNorm() : kNaN;
+    FitProgress base;
+    base.start = start;
+    base.num_starts = options.num_starts;
+    base.best_cost = best_cost;
+    StageResult result;
+    if (options.solver == SolverKind::kCeres) {
+      base.stage = "ceres";
+      result = RunCeres(*cost, map, theta_start, options, base, t0);
+    } else {
+      result = RunNlopt(*cost, map, theta_start, options, base, t0);
+      if (options.nlopt_polish && result.status != FitStatus::kFailed) {
+        base.stage = "polish";
+        StageResult polished = RunCeres(*cost, map, result.theta, options, base, t0);
+        polished.iterations += result.iterations;
+        polished.message = result.message + "; polish " + polished.message;
+        // The polish starts at the NLopt optimum; it keeps it when it finds nothing better (the costs
+        // then differ by rounding only).
+        if (!(polished.cost <= result.cost * (1.0 + kPolishCostSlack))) {
+          polished.theta = result.theta;
+          polished.cost = result.cost;
+        }
+        result = polished;
+      }
+    }
+    outcome.value = map.ToP(result.theta.data());
+    outcome.final_cost = result.cost;
+    outcome.status = result.status;
+    outcome.iterations = result.iterations;
+    summary.starts.push_back(outcome);
+    const bool better = std::isfinite(result.cost) && result.status != FitStatus::kFailed &&
+                        (!std::isfinite(best_cost) || result.cost < best_cost);
+    if (better || (start == 0 && !std::isfinite(best_cost))) {
+      if (better) best_cost = result.cost;
+      best = result;
+      summary.best_start = start;
+    }
+  }
+
+  summary.initial_cost = summary.starts.front().initial_cost;
+  summary.initial_error = std::sqrt(2.0 * summary.initial_cost);
+  summary.status = best.status;
+  summary.message = best.message;
+  summary.iterations = best.iterations;
+  summary.num_evaluations = context.num_evaluations;
+  const Eigen::VectorXd p_best = map.ToP(best.theta.data());
+  Eigen::VectorXd r;
+  if (EvaluateTheta(*cost, best.theta, &r, nullptr)) {
+    summary.final_cost = 0.5 * r.squaredNorm();
+  } else {
+    summary.final_cost = kNaN;
+    summary.status = FitStatus::kFailed;
+  }
+  summary.final_error = std::sqrt(2.0 * summary.final_cost);
+  for (int i = 0; i < n; ++i) {
+    ParameterEstimate e;
+    e.name = parameters[i].name;
+    e.unit = parameters[i].unit;
+    e.initial = parameters[i].initial;
+    e.value = p_best[i];
+    e.lower = parameters[i].lower;
+    e.upper = parameters[i].upper;
+    e.log_scale = parameters[i].log_scale;
+    summary.parameters.push_back(e);
+  }
+  if (summary.status != FitStatus::kFailed) {
+    AnalyseOptimum(*cost, map, best.theta, options, &summary);
+  } else {
+    summary.covariance = Eigen::MatrixXd::Constant(n, n, kNaN);
+    summary.correlation = Eigen::MatrixXd::Constant(n, n, kNaN);
+    for (auto& e : summary.parameters) e.std_dev = kNaN;
+  }
+  summary.num_evaluations = context.num_evaluations;
+  summary.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return summary;
+}
+
+}  // namespace stagefit::fit

@@ -1,0 +1,258 @@
+#include "stagefit/compare/residuals.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+
+#include "compare_test_util.h"
+#include "stagefit/common/error.h"
+#include "stagefit/measurement/projection.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/model/parameters.h"
+
+namespace stagefit::compare {
+namespace {
+
+using testing::LogFrequencies;
+using testing::MakeSyntheticMeasurement;
+
+// The model's own FRF, projected by pinv(J_a) ... pinv(J_F') and compared with the model's compliance,
+// differs only by rounding in the modal sums and the pseudo-inverses: relative 1e-12 on the strong
+// elements, a little more on a coupling element near an antiresonance. 1e-8 is far below any
+// physical discrepancy (|ln 1.0001| = 1e-4) and far above that rounding.
+constexpr double kSelfErrorTolerance = 1e-8;
+
+class ResidualsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    spec_ = model::DefaultModelSpec();
+    frequency_hz_ = LogFrequencies(5.0, 500.0, 160);
+    data_ = MakeSyntheticMeasurement(spec_, frequency_hz_);
+  }
+  model::ModelSpec spec_;
+  Eigen::VectorXd frequency_hz_;
+  measurement::FrfData data_;
+};
+
+TEST_F(ResidualsTest, ErrorIsZeroForTheModelsOwnFrfInComplianceSpace) {
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  EXPECT_EQ(comparison.space(), ComparisonSpace::kCompliance);
+  EXPECT_EQ(comparison.num_outputs(), 6);
+  EXPECT_EQ(comparison.num_frequencies(), 160);
+  EXPECT_LT(comparison.Error(spec_), kSelfErrorTolerance);
+}
+
+TEST_F(ResidualsTest, ErrorIsZeroForTheModelsOwnFrfInRawSpace) {
+  ComparisonOptions options;
+  options.space = ComparisonSpace::kRaw;
+  const Comparison comparison = Comparison::Create(spec_, data_, options);
+  EXPECT_EQ(comparison.num_outputs(), 12);
+  EXPECT_EQ(comparison.num_inputs(), 10);
+  EXPECT_LT(comparison.Error(spec_), kSelfErrorTolerance);
+}
+
+TEST_F(ResidualsTest, RawSpaceNeedsNoSensorEntriesInTheModel) {
+  model::ModelSpec bare = spec_;
+  bare.sensors.clear();
+  bare.excitations.clear();
+  ComparisonOptions options;
+  options.space = ComparisonSpace::kRaw;
+  const Comparison comparison = Comparison::Create(bare, data_, options);
+  EXPECT_LT(comparison.Error(bare), kSelfErrorTolerance);
+}
+
+TEST_F(ResidualsTest, OnePercentMagnitudeScalingGivesLogOfOnePointZeroOne) {
+  for (auto space : {ComparisonSpace::kCompliance, ComparisonSpace::kRaw}) {
+    measurement::FrfData scaled = data_;
+    for (auto& H : scaled.frf) H *= 1.01;
+    ComparisonOptions options;
+    options.space = space;
+    const Comparison comparison = Comparison::Create(spec_, scaled, options);
+    // e = ln(1 / 1.01) at every point, so error = |ln 1.01| = 0.00995033...
+    EXPECT_NEAR(comparison.Error(spec_), std::log(1.01), kSelfErrorTolerance) << ToString(space);
+  }
+}
+
+TEST_F(ResidualsTest, ResidualNormEqualsErrorAndBreakdownAgrees) {
+  model::ModelSpec stiffer = spec_;
+  model::SetParameter(stiffer, model::FindParameter(stiffer, "hexapod.k.Dx"), 1.3e7);
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  Eigen::VectorXd r;
+  comparison.Residuals(stiffer, &r);
+  EXPECT_EQ(r.size(), comparison.num_residuals());
+  const double error = comparison.Error(stiffer);
+  EXPECT_GT(error, 1e-3);
+  EXPECT_NEAR(r.norm(), error, 1e-14);
+  const ComparisonResult result = comparison.Evaluate(stiffer);
+  EXPECT_NEAR(result.error, error, 1e-12);
+  double share = 0.0;
+  for (const auto& el : result.elements) share += el.share;
+  EXPECT_NEAR(share, 1.0, 1e-12);
+  double band_share = 0.0;
+  for (const auto& b : result.bands) band_share += b.share;
+  EXPECT_NEAR(band_share, 1.0, 1e-12);
+  EXPECT_EQ(result.element_band_error.rows(), static_cast<int>(result.elements.size()));
+  EXPECT_EQ(result.element_band_error.cols(), static_cast<int>(result.bands.size()));
+  EXPECT_FALSE(result.BriefReport().empty());
+}
+
+// Central differences with relative step h = 1e-6: truncation error ~ h^2 |r'''| p^3 ~ 1e-12 of the
+// column, rounding ~ (relative rounding of the evaluation, <= 1e-10 by the evaluator's modal/direct
+// agreement check) / h = 1e-4 of the residual scale. kJacobianTolerance = 1e-3 of the column's largest
+// entry is above both and far below any wrong sign, factor or missing term.
+constexpr double kFdRelativeStep = 1e-6;
+constexpr double kJacobianTolerance = 1e-3;
+
+void CheckJacobian(const model::ModelSpec& spec, const Comparison& comparison,
+                   const std::vector<model::ParameterInfo>& params) {
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  comparison.ResidualsAndJacobian(spec, params, &r, &J);
+  ASSERT_EQ(J.rows(), comparison.num_residuals());
+  ASSERT_EQ(J.cols(), static_cast<int>(params.size()));
+  Eigen::VectorXd r0;
+  comparison.Residuals(spec, &r0);
+  EXPECT_LT((r - r0).lpNorm<Eigen::Infinity>(), 1e-14);
+  for (size_t k = 0; k < params.size(); ++k) {
+    const double p = model::GetParameter(spec, params[k]);
+    const double h = kFdRelativeStep * p;
+    model::ModelSpec plus = spec, minus = spec;
+    model::SetParameter(plus, params[k], p + h);
+    model::SetParameter(minus, params[k], p - h);
+    Eigen::VectorXd rp, rm;
+    comparison.Residuals(plus, &rp);
+    comparison.Residuals(minus, &rm);
+    const Eigen::VectorXd fd = (rp - rm) / (2 * h);
+    const double scale = J.col(k).lpNorm<Eigen::Infinity>();
+    ASSERT_GT(scale, 0.0) << params[k].name;
+    EXPECT_LT((fd - J.col(k)).lpNorm<Eigen::Infinity>(), kJacobianTolerance * scale) << params[k].name;
+  }
+}
+
+TEST_F(ResidualsTest, JacobianMatchesCentralDifferencesInComplianceSpace) {
+  model::ModelSpec perturbed = spec_;
+  model::SetParameter(perturbed, model::FindParameter(perturbed, "hexapod.k.Dx"), 1.2e7);
+  model::SetParameter(perturbed, model::FindParameter(perturbed, "hexapod.k.Rx"), 1.2e6);
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  const auto params = model::MatchParameters(
+      perturbed, {"hexapod.k.*", "hexapod.c.Dx", "rz.k.Rx", "ty.k.Dz", "hexapod.c.Rz"});
+  CheckJacobian(perturbed, comparison, params);
+}
+
+TEST_F(ResidualsTest, JacobianMatchesCentralDifferencesInRawSpace) {
+  model::ModelSpec perturbed = spec_;
+  model::SetParameter(perturbed, model::FindParameter(perturbed, "hexapod.k.Dz"), 0.8e8);
+  ComparisonOptions options;
+  options.space = ComparisonSpace::kRaw;
+  const Comparison comparison = Comparison::Create(spec_, data_, options);
+  const auto params = model::MatchParameters(perturbed, {"hexapod.k.D?", "hexapod.c.Dz", "rz.k.Ry"});
+  CheckJacobian(perturbed, comparison, params);
+}
+
+TEST_F(ResidualsTest, CoherenceWeightsReduceTheInfluenceOfALowCoherencePoint) {
+  ComparisonOptions options;
+  options.space = ComparisonSpace::kRaw;
+  measurement::FrfData corrupted = data_;
+  testing::SetPerfectCoherence(&corrupted);
+  const Comparison clean = Comparison::Create(spec_, corrupted, options);
+  // Corrupt one point of the first used element: factor 3 in magnitude, coherence 0.5 (SNR = 1).
+  const ElementIndex element = clean.used_elements().front();
+  const int f = 40;
+  corrupted.frf[f](element.output, element.input) *= 3.0;
+  corrupted.coherence[f](element.output, element.input) = 0.5;
+
+  const Comparison weighted = Comparison::Create(spec_, corrupted, options);
+  options.use_coherence = false;
+  const Comparison unweighted = Comparison::Create(spec_, corrupted, options);
+  ASSERT_EQ(weighted.num_points(), unweighted.num_points());
+  const int n = weighted.num_points();
+  const double cap = kDefaultCoherenceWeightCap;
+  // One point with |e| = ln 3; all others exact. Weighted: w = 1 there, cap elsewhere.
+  const double expected_weighted = std::log(3.0) / std::sqrt(cap * cap * (n - 1) + 1.0);
+  const double expected_unweighted = std::log(3.0) / std::sqrt(static_cast<double>(n));
+  EXPECT_NEAR(weighted.Error(spec_), expected_weighted, kSelfErrorTolerance);
+  EXPECT_NEAR(unweighted.Error(spec_), expected_unweighted, kSelfErrorTolerance);
+  EXPECT_LT(weighted.Error(spec_), unweighted.Error(spec_) / 20.0);
+  EXPECT_DOUBLE_EQ(weighted.weights()[f](element.output, element.input), 1.0);
+}
+
+TEST_F(ResidualsTest, PerfectCoherenceGivesUniformCappedWeightsInComplianceSpace) {
+  measurement::FrfData with_coherence = data_;
+  testing::SetPerfectCoherence(&with_coherence);
+  const Comparison comparison = Comparison::Create(spec_, with_coherence);
+  for (const auto& idx : comparison.used_elements()) {
+    EXPECT_DOUBLE_EQ(comparison.weights()[10](idx.output, idx.input), kDefaultCoherenceWeightCap);
+  }
+}
+
+TEST_F(ResidualsTest, LowRawCoherencePropagatesToTheProjectedElements) {
+  measurement::FrfData noisy = data_;
+  testing::SetPerfectCoherence(&noisy);
+  // Every raw point at gamma^2 = 0.5 (SNR 1) at one frequency: the projected points there get a
+  // finite weight below the cap.
+  const int f = 20;
+  noisy.coherence[f].setConstant(0.5);
+  const Comparison comparison = Comparison::Create(spec_, noisy);
+  for (const auto& idx : comparison.used_elements()) {
+    EXPECT_LT(comparison.weights()[f](idx.output, idx.input), kDefaultCoherenceWeightCap);
+    EXPECT_GT(comparison.weights()[f](idx.output, idx.input), 0.0);
+    EXPECT_DOUBLE_EQ(comparison.weights()[f + 1](idx.output, idx.input), kDefaultCoherenceWeightCap);
+  }
+}
+
+TEST_F(ResidualsTest, SignificanceKeepsTheDiagonalAndDropsCrossTalk) {
+  // A projected 6x6 (no geometry) of the model's compliance at {X}, with cross-talk added to Dx/Fy
+  // and Dy/Fx at 1 % of the diagonal scale, and the strong Dx/My coupling of the stage kept.
+  measurement::FrfData projected = measurement::ProjectToFrame(data_, spec_.frames[0].origin_W);
+  for (auto& c : projected.outputs) c.body.clear();
+  for (auto& c : projected.inputs) c.body.clear();
+  for (auto& H : projected.frf) {
+    const double scale = std::sqrt(std::abs(H(0, 0)) * std::abs(H(1, 1)));
+    H(0, 1) = std::complex<double>(0.01 * scale, 0.003 * scale);
+    H(1, 0) = std::complex<double>(0.01 * scale, -0.002 * scale);
+  }
+  const Comparison comparison = Comparison::Create(spec_, projected);
+  const Eigen::MatrixXd& kappa = comparison.significance();
+  for (int k = 0; k < 6; ++k) EXPECT_DOUBLE_EQ(kappa(k, k), 1.0);
+  EXPECT_LT(kappa(0, 1), 0.02);
+  EXPECT_GE(kappa(0, 4), kDefaultSignificanceThreshold);
+  EXPECT_GE(kappa(1, 3), kDefaultSignificanceThreshold);
+  bool diagonal[6] = {};
+  for (const auto& idx : comparison.used_elements()) {
+    EXPECT_FALSE(idx.output == 0 && idx.input == 1);
+    EXPECT_FALSE(idx.output == 1 && idx.input == 0);
+    if (idx.output == idx.input) diagonal[idx.output] = true;
+  }
+  for (bool d : diagonal) EXPECT_TRUE(d);
+  bool dx_my = false;
+  for (const auto& idx : comparison.used_elements()) dx_my = dx_my || (idx.output == 0 && idx.input == 4);
+  EXPECT_TRUE(dx_my);
+}
+
+TEST_F(ResidualsTest, BandLimitsTheComparisonGrid) {
+  ComparisonOptions options;
+  options.fmin_hz = 20.0;
+  options.fmax_hz = 100.0;
+  const Comparison comparison = Comparison::Create(spec_, data_, options);
+  EXPECT_GE(comparison.frequency_hz()(0), 20.0);
+  EXPECT_LE(comparison.frequency_hz()(comparison.num_frequencies() - 1), 100.0);
+  options.fmin_hz = 1000.0;
+  options.fmax_hz = 2000.0;
+  EXPECT_THROW(Comparison::Create(spec_, data_, options), InputError);
+}
+
+TEST_F(ResidualsTest, ComplianceSpaceWithoutGeometryIsRejected) {
+  measurement::FrfData bare = data_;
+  for (auto& c : bare.outputs) c.body.clear();
+  EXPECT_THROW(Comparison::Create(spec_, bare), InputError);
+}
+
+TEST(ParseComparisonSpace, RejectsUnknownNames) {
+  EXPECT_EQ(ParseComparisonSpace("raw", "--space"), ComparisonSpace::kRaw);
+  EXPECT_EQ(ParseComparisonSpace("compliance", "--space"), ComparisonSpace::kCompliance);
+  EXPECT_THROW(ParseComparisonSpace("modal", "--space"), InputError);
+}
+
+}  // namespace
+}  // namespace stagefit::compare

@@ -1,0 +1,280 @@
+#include "stagefit/fit/least_squares.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <random>
+
+#include "stagefit/common/error.h"
+
+namespace stagefit::fit {
+namespace {
+
+// y(t) = A exp(-t / tau) sampled at t_i, with additive noise of standard deviation kNoise.
+class ExponentialDecay final : public LeastSquaresProblem {
+ public:
+  ExponentialDecay(Eigen::VectorXd t, Eigen::VectorXd y) : t_(std::move(t)), y_(std::move(y)) {}
+  int num_parameters() const override { return 2; }
+  int num_residuals() const override { return static_cast<int>(t_.size()); }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    const Eigen::ArrayXd g = (-t_.array() / p[1]).exp();
+    *r = (p[0] * g - y_.array()).matrix();
+    if (J != nullptr) {
+      J->resize(t_.size(), 2);
+      J->col(0) = g.matrix();
+      J->col(1) = (p[0] * g * t_.array() / (p[1] * p[1])).matrix();
+    }
+    return true;
+  }
+
+ private:
+  Eigen::VectorXd t_, y_;
+};
+
+// y = X b (a straight line a + b t): linear least squares with the closed-form covariance.
+class StraightLine final : public LeastSquaresProblem {
+ public:
+  StraightLine(Eigen::MatrixXd X, Eigen::VectorXd y) : X_(std::move(X)), y_(std::move(y)) {}
+  int num_parameters() const override { return static_cast<int>(X_.cols()); }
+  int num_residuals() const override { return static_cast<int>(X_.rows()); }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    *r = X_ * p - y_;
+    if (J != nullptr) *J = X_;
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd X_;
+  Eigen::VectorXd y_;
+};
+
+// y = a b t: only the product a b is determined.
+class Product final : public LeastSquaresProblem {
+ public:
+  Product(Eigen::VectorXd t, Eigen::VectorXd y) : t_(std::move(t)), y_(std::move(y)) {}
+  int num_parameters() const override { return 2; }
+  int num_residuals() const override { return static_cast<int>(t_.size()); }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    *r = p[0] * p[1] * t_ - y_;
+    if (J != nullptr) {
+      J->resize(t_.size(), 2);
+      J->col(0) = p[1] * t_;
+      J->col(1) = p[0] * t_;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::VectorXd t_, y_;
+};
+
+constexpr double kTrueA = 2.0;
+constexpr double kTrueTau = 0.3;   // s
+constexpr double kNoise = 0.01;
+constexpr int kSamples = 60;
+
+ExponentialDecay MakeDecay(std::uint64_t seed) {
+  std::mt19937_64 generator(seed);
+  std::normal_distribution<double> normal(0.0, kNoise);
+  Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(kSamples, 0.0, 1.5);
+  Eigen::VectorXd y(kSamples);
+  for (int i = 0; i < kSamples; ++i) y[i] = kTrueA * std::exp(-t[i] / kTrueTau) + normal(generator);
+  return ExponentialDecay(t, y);
+}
+
+std::vector<ParameterSpec> DecayParameters() {
+  ParameterSpec a{"A", "m", 1.0};
+  ParameterSpec tau{"tau", "s", 1.0, 1e-3, 10.0, true};
+  return {a, tau};
+}
+
+TEST(Solve, ExponentialDecayRecoversTruthWithinThreeStd) {
+  const ExponentialDecay problem = MakeDecay(7);
+  const FitSummary summary = Solve(problem, DecayParameters(), {});
+  ASSERT_EQ(summary.status, FitStatus::kConverged) << summary.FullReport();
+  EXPECT_LT(summary.final_error, summary.initial_error);
+  EXPECT_NEAR(summary.parameters[0].value, kTrueA, 3.0 * summary.parameters[0].std_dev);
+  EXPECT_NEAR(summary.parameters[1].value, kTrueTau, 3.0 * summary.parameters[1].std_dev);
+  // sigma^2 estimates the noise variance: with 58 degrees of freedom its relative standard deviation
+  // is sqrt(2 / 58) = 0.19, so a factor 1.8 either way is a > 3-sigma event.
+  EXPECT_GT(summary.residual_variance, kNoise * kNoise / 1.8);
+  EXPECT_LT(summary.residual_variance, kNoise * kNoise * 1.8);
+  EXPECT_TRUE(summary.warnings.empty()) << summary.FullReport();
+  EXPECT_NE(summary.BriefReport().find("converged"), std::string::npos);
+  EXPECT_NE(summary.FullReport().find("tau"), std::string::npos);
+}
+
+TEST(Solve, LinearProblemCovarianceEqualsClosedForm) {
+  std::mt19937_64 generator(11);
+  std::normal_distribution<double> normal(0.0, 0.05);
+  const int m = 40;
+  Eigen::MatrixXd X(m, 2);
+  Eigen::VectorXd y(m);
+  for (int i = 0; i < m; ++i) {
+    const double t = 0.1 * i;
+    X(i, 0) = 1.0;
+    X(i, 1) = t;
+    y[i] = 0.5 + 1.5 * t + normal(generator);
+  }
+  const StraightLine problem(X, y);
+  const FitSummary summary = Solve(problem, {{"a", "m", 0.0}, {"b", "m/s", 0.0}}, {});
+  ASSERT_TRUE(summary.converged()) << summary.FullReport();
+  const Eigen::VectorXd b = (X.transpose() * X).ldlt().solve(X.transpose() * y);
+  const double sigma2 = (X * b - y).squaredNorm() / (m - 2);
+  const Eigen::MatrixXd covariance = sigma2 * (X.transpose() * X).inverse();
+  // Levenberg-Marquardt stops when the relative cost change falls below 1e-10; near the optimum
+  // that change is (delta / std)^2 / (m - n), so the estimate may sit sqrt(1e-10 * 38) = 6e-5 std
+  // away from the normal-equation solution: 3e-4 std allows a few such steps. The covariance depends
+  // on the optimum only through sigma^2, to second order: 1e-8 relative.
+  constexpr double kStdFraction = 3e-4;
+  constexpr double kTolerance = 1e-8;
+  EXPECT_NEAR(summary.parameters[0].value, b[0], kStdFraction * std::sqrt(covariance(0, 0)));
+  EXPECT_NEAR(summary.parameters[1].value, b[1], kStdFraction * std::sqrt(covariance(1, 1)));
+  EXPECT_NEAR(summary.residual_variance / sigma2, 1.0, kTolerance);
+  EXPECT_TRUE(summary.covariance.isApprox(covariance, kTolerance));
+  const double correlation = covariance(0, 1) / std::sqrt(covariance(0, 0) * covariance(1, 1));
+  EXPECT_NEAR(summary.correlation(0, 1), correlation, kTolerance);
+  EXPECT_NEAR(summary.parameters[1].std_dev, std::sqrt(covariance(1, 1)), kTolerance);
+}
+
+TEST(Solve, LogParameterStdMatchesDeltaMethod) {
+  const ExponentialDecay problem = MakeDecay(3);
+  const FitSummary summary = Solve(problem, DecayParameters(), {});
+  ASSERT_TRUE(summary.converged());
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  problem.Evaluate(summary.values(), &r, &J);
+  const Eigen::MatrixXd covariance =
+      r.squaredNorm() / (kSamples - 2) * (J.transpose() * J).inverse();  // natural units directly
+  constexpr double kTolerance = 1e-7;  // same linearisation; differs by rounding only
+  EXPECT_NEAR(summary.parameters[1].std_dev / std::sqrt(covariance(1, 1)), 1.0, kTolerance);
+  EXPECT_NEAR(summary.parameters[0].std_dev / std::sqrt(covariance(0, 0)), 1.0, kTolerance);
+}
+
+TEST(Solve, ReportedStdMatchesScatterOverNoiseRealisations) {
+  // 200 seeded realisations: the sample standard deviation of tau has a relative sampling error of
+  // about 1 / sqrt(2 * 199) = 5 %, so [0.85, 1.15] is a 3-sigma band.
+  constexpr int kRealisations = 200;
+  std::vector<double> estimates;
+  double mean_std = 0.0;
+  for (int k = 0; k < kRealisations; ++k) {
+    const FitSummary s = Solve(MakeDecay(1000 + k), DecayParameters(), {});
+    ASSERT_TRUE(s.converged());
+    estimates.push_back(s.parameters[1].value);
+    mean_std += s.parameters[1].std_dev / kRealisations;
+  }
+  const Eigen::Map<Eigen::VectorXd> e(estimates.data(), kRealisations);
+  const double sample_std = std::sqrt((e.array() - e.mean()).square().sum() / (kRealisations - 1));
+  EXPECT_GT(sample_std / mean_std, 0.85);
+  EXPECT_LT(sample_std / mean_std, 1.15);
+}
+
+TEST(Solve, ProductOfTwoParametersIsFlaggedUnidentifiable) {
+  Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(20, 0.0, 1.0);
+  Eigen::VectorXd y = 6.0 * t;
+  y[3] += 1e-3;
+  const Product problem(t, y);
+  const FitSummary summary = Solve(problem, {{"a", "", 1.0, 1e-2, 1e2, true}, {"b", "", 1.0, 1e-2, 1e2, true}}, {});
+  EXPECT_NE(summary.status, FitStatus::kFailed);
+  EXPECT_NEAR(summary.parameters[0].value * summary.parameters[1].value, 6.0, 1e-3);
+  EXPECT_FALSE(summary.parameters[0].identifiable);
+  EXPECT_FALSE(summary.parameters[1].identifiable);
+  EXPECT_FALSE(summary.warnings.empty());
+}
+
+TEST(Solve, FiniteDifferenceJacobianAgreesWithAnalytic) {
+  const ExponentialDecay problem = MakeDecay(5);
+  FitOptions options;
+  const FitSummary analytic = Solve(problem, DecayParameters(), options);
+  options.jacobian = JacobianKind::kFiniteDifference;
+  const FitSummary numeric = Solve(problem, DecayParameters(), options);
+  ASSERT_TRUE(numeric.converged()) << numeric.FullReport();
+  // Central differences are accurate to ~1e-10 relative here; the optimum moves by less than 1e-7
+  // relative and the standard deviations likewise.
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(numeric.parameters[i].value / analytic.parameters[i].value, 1.0, 1e-7);
+    EXPECT_NEAR(numeric.parameters[i].std_dev / analytic.parameters[i].std_dev, 1.0, 1e-5);
+  }
+}
+
+TEST(Solve, NloptLocalAndGlobalReachTheCeresOptimum) {
+  const ExponentialDecay problem = MakeDecay(9);
+  const FitSummary reference = Solve(problem, DecayParameters(), {});
+  std::vector<ParameterSpec> bounded = DecayParameters();
+  bounded[0].lower = 0.1;
+  bounded[0].upper = 10.0;
+  for (const char* algorithm : {"LN_BOBYQA", "LN_SBPLX", "GN_CRS2_LM"}) {
+    FitOptions options;
+    options.solver = SolverKind::kNlopt;
+    options.nlopt_algorithm = algorithm;
+    options.nlopt_polish = false;
+    const FitSummary summary = Solve(problem, bounded, options);
+    EXPECT_NE(summary.status, FitStatus::kFailed) << algorithm;
+    // Derivative-free methods stop on a relative objective change: the optimum agrees to ~1e-4.
+    EXPECT_NEAR(summary.final_cost / reference.final_cost, 1.0, 1e-4) << algorithm << summary.FullReport();
+    options.nlopt_polish = true;
+    const FitSummary polished = Solve(problem, bounded, options);
+    EXPECT_TRUE(polished.converged()) << algorithm << polished.FullReport();
+    EXPECT_NEAR(polished.parameters[1].value / reference.parameters[1].value, 1.0, 1e-6) << algorithm;
+  }
+}
+
+TEST(Solve, MultiStartIsReproducibleAndReportsEveryStart) {
+  const ExponentialDecay problem = MakeDecay(13);
+  FitOptions options;
+  options.num_starts = 5;
+  options.start_factor = 3.0;
+  options.seed = 42;
+  const FitSummary a = Solve(problem, DecayParameters(), options);
+  const FitSummary b = Solve(problem, DecayParameters(), options);
+  ASSERT_EQ(a.starts.size(), 5u);
+  EXPECT_EQ(a.starts[0].initial[0], 1.0);
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(a.starts[k].initial, b.starts[k].initial);
+  EXPECT_NE(a.starts[1].initial, a.starts[2].initial);
+  EXPECT_EQ(a.values(), b.values());
+  EXPECT_NE(a.FullReport().find("Starts:"), std::string::npos);
+}
+
+TEST(Solve, IterationBudgetExhaustedIsReportedNotHidden) {
+  const ExponentialDecay problem = MakeDecay(17);
+  FitOptions options;
+  options.max_iterations = 1;
+  const FitSummary summary = Solve(problem, DecayParameters(), options);
+  EXPECT_EQ(summary.status, FitStatus::kMaxIterations);
+  EXPECT_FALSE(summary.converged());
+}
+
+TEST(Solve, InconsistentParametersThrowInputError) {
+  const ExponentialDecay problem = MakeDecay(1);
+  std::vector<ParameterSpec> p = DecayParameters();
+  p[1].initial = -1.0;
+  EXPECT_THROW(Solve(problem, p, {}), InputError);
+  p = DecayParameters();
+  p[1].upper = 0.5;
+  EXPECT_THROW(Solve(problem, p, {}), InputError);
+  FitOptions options;
+  options.solver = SolverKind::kNlopt;
+  options.nlopt_algorithm = "NO_SUCH_METHOD";
+  EXPECT_THROW(Solve(problem, DecayParameters(), options), InputError);
+  options.nlopt_algorithm = "GN_DIRECT";  // A has no bounds
+  EXPECT_THROW(Solve(problem, DecayParameters(), options), InputError);
+}
+
+TEST(Solve, ProgressCallbackSeesDecreasingCost) {
+  const ExponentialDecay problem = MakeDecay(19);
+  FitOptions options;
+  std::vector<double> costs;
+  options.progress = [&](const FitProgress& progress) { costs.push_back(progress.cost); };
+  const FitSummary summary = Solve(problem, DecayParameters(), options);
+  ASSERT_GE(costs.size(), 2u);
+  EXPECT_LE(costs.back(), costs.front());
+  EXPECT_NEAR(costs.back(), summary.final_cost, 1e-12 + 1e-9 * summary.final_cost);
+}
+
+}  // namespace
+}  // namespace stagefit::fit

@@ -1,0 +1,120 @@
+#include "stagefit/model/effects.h"
+
+#include <gtest/gtest.h>
+
+#include "stagefit/common/error.h"
+#include "stagefit/model/assembled_model.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/model/modes.h"
+
+namespace stagefit::model {
+namespace {
+
+TEST(Effects, EveryEffectAppliesAtEveryLocationAndStaysValid) {
+  const ModelSpec base = DefaultModelSpec();
+  auto effects = EnumerateEffects(base, {"a1x", "h3"});
+  // 5 bodies x 2 (payload, extra-body) + 3 imposed DoF + 5 joints x 3 (offset, structural, gyroscopic)
+  // + 60 free DoF pairs + 2 channels + 1 delay.
+  EXPECT_EQ(effects.size(), 91u);
+  for (auto e : effects) {
+    // Non-zero values so that each edit really changes something.
+    if (e.name == "joint-offset") e.parameters["dz"] = 0.01;
+    if (e.name == "coupled-stiffness") e.parameters["k"] = 1e3;
+    if (e.name == "sensor-geometry") e.parameters["dx"] = 1e-3;
+    ModelSpec spec = base;
+    ASSERT_NO_THROW(ApplyEffect(spec, e)) << e.ToString();
+    EXPECT_TRUE(ValidateModel(spec).empty()) << e.ToString();
+    ASSERT_EQ(spec.effects.size(), 1u);
+    EXPECT_NO_THROW(AssembledModel::Assemble(spec)) << e.ToString();
+  }
+}
+
+TEST(Effects, PayloadConservesMassAndFirstMoment) {
+  ModelSpec spec = DefaultModelSpec();
+  const BodySpec before = spec.bodies[4];
+  ApplyEffect(spec, ParseEffect("payload@hexapod:mass=5 kg,z=100 mm", spec));
+  const BodySpec& after = spec.bodies[4];
+  EXPECT_DOUBLE_EQ(after.mass_kg, before.mass_kg + 5.0);
+  const Eigen::Vector3d moment = before.mass_kg * before.com_W + 5.0 * (before.com_W + Eigen::Vector3d(0, 0, 0.1));
+  EXPECT_TRUE((after.mass_kg * after.com_W).isApprox(moment, 1e-14));
+  // Parallel axis: Ixx about the new CoM = Ixx + m1 d1^2 + m2 d2^2.
+  const double d1 = after.com_W.z() - before.com_W.z(), d2 = 0.1 - d1;
+  EXPECT_NEAR(after.inertia_com_W(0, 0), before.inertia_com_W(0, 0) + before.mass_kg * d1 * d1 + 5.0 * d2 * d2, 1e-12);
+  EXPECT_EQ(spec.effects[0], "payload@hexapod:mass=5,x=0,y=0,z=0.10000000000000001");
+}
+
+TEST(Effects, PayloadLowersTheHexapodVerticalModeAsSqrtOfMassRatio) {
+  // The hexapod's Dz mode is a 15 kg plate on 1e8 N/m; a 5 kg payload at its CoM moves it by
+  // about sqrt(15 / 20) (the rest of the stack is much stiffer and heavier).
+  auto mode_of = [](const ModelSpec& spec) {
+    auto model = AssembledModel::Assemble(spec);
+    for (const auto& m : CalcModes(model).modes) {
+      if (model.dof_names()[m.dominant_dof] == "hexapod.Dz") return m.frequency_hz;
+    }
+    return 0.0;
+  };
+  ModelSpec spec = DefaultModelSpec();
+  const double f0 = mode_of(spec);
+  ApplyEffect(spec, ParseEffect("payload@hexapod:mass=5", spec));
+  EXPECT_NEAR(mode_of(spec) / f0, std::sqrt(15.0 / 20.0), 0.01);
+}
+
+TEST(Effects, ServoStiffnessAddsOneDof) {
+  ModelSpec spec = DefaultModelSpec();
+  ApplyEffect(spec, ParseEffect("servo-stiffness@ty.Dy:k=2e8 N/m", spec));
+  EXPECT_EQ(AssembledModel::Assemble(spec).num_dofs(), 28);
+  EXPECT_FALSE(spec.joints[1].imposed[1]);
+  EXPECT_EQ(spec.joints[1].stiffness[1], 2e8);
+}
+
+TEST(Effects, ExtraBodyAddsSixDofWithTheGivenLocalMode) {
+  ModelSpec spec = DefaultModelSpec();
+  ApplyEffect(spec, ParseEffect("extra-body@granite:mass=10,k=3.9478e6,kr=1e9", spec));  // sqrt(k/m)/2pi = 100 Hz
+  auto model = AssembledModel::Assemble(spec);
+  EXPECT_EQ(model.num_dofs(), 33);
+  int near = 0;
+  for (const auto& m : CalcModes(model).modes) near += std::abs(m.frequency_hz - 100.0) < 5.0;
+  EXPECT_GE(near, 2);  // the local mode in x and y (granite barely moves at 100 Hz)
+}
+
+TEST(Effects, EffectsSurviveTheModelFileRoundTrip) {
+  ModelSpec spec = DefaultModelSpec();
+  for (const char* text : {"payload@hexapod:mass=3,z=0.05", "extra-body@rz:mass=4,k=1e7,kr=1e5", "servo-stiffness@rz.Rz",
+                           "joint-offset@ty:dz=0.02", "coupled-stiffness@hexapod.Dx-Ry:k=1e5",
+                           "structural-damping@hexapod:eta=0.03", "sensor-geometry@a2x:dx=2 mm", "delay@acquisition:tau=1e-4",
+                           "gyroscopic@rz:spin=60 rpm"}) {
+    ApplyEffect(spec, ParseEffect(text, spec));
+  }
+  ModelSpec back = ParseModelToml(WriteModelToml(spec), "effects.toml");
+  auto a = AssembledModel::Assemble(spec), b = AssembledModel::Assemble(back);
+  EXPECT_TRUE(a.M().isApprox(b.M(), 1e-15));
+  EXPECT_TRUE(a.K().isApprox(b.K(), 1e-15));
+  EXPECT_TRUE(a.C().isApprox(b.C(), 1e-15));
+  EXPECT_TRUE(a.K_loss().isApprox(b.K_loss(), 1e-15));
+  EXPECT_EQ(back.effects, spec.effects);
+  EXPECT_EQ(back.geometry_corrections.size(), 1u);
+  EXPECT_EQ(back.acquisition_delay_s, 1e-4);
+}
+
+TEST(Effects, BadTextNamesTheProblem) {
+  const ModelSpec spec = DefaultModelSpec();
+  auto message = [&](const std::string& text) {
+    try {
+      ParseEffect(text, spec);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("payload").find("expected EFFECT@LOCATION"), std::string::npos);
+  EXPECT_NE(message("paylod@hexapod").find("not in the catalogue"), std::string::npos);
+  EXPECT_NE(message("payload@hexapd").find("'hexapd' is not a location of payload"), std::string::npos);
+  EXPECT_NE(message("payload@hexapod:weight=3").find("no parameter 'weight'"), std::string::npos);
+  EXPECT_NE(message("payload@hexapod:mass=3 N").find("expected a mass"), std::string::npos);
+  EXPECT_NE(message("servo-stiffness@ty.Dx").find("not a location"), std::string::npos);
+  ModelSpec s = spec;
+  EXPECT_THROW(ApplyEffect(s, ParseEffect("payload@hexapod:mass=-3", spec)), InputError);
+}
+
+}  // namespace
+}  // namespace stagefit::model
