@@ -37,7 +37,13 @@ bool StderrIsTerminal();
 void RegisterModelCommand(CLI::App& app);
 void RegisterPoseCommand(CLI::App& app);
 void RegisterExportCommand(CLI::App& app);
+void RegisterFrfCommand(CLI::App& app);
+void RegisterSynthesizeCommand(CLI::App& app);
+void RegisterDiagnoseCommand(CLI::App& app);
 void RegisterDisturbanceCommand(CLI::App& app);
 void RegisterEstimateCommand(CLI::App& app);
+void RegisterCompareCommand(CLI::App& app);
+void RegisterFitCommand(CLI::App& app);
+void RegisterSimulateCommand(CLI::App& app);
 
 }  // namespace stagefit::cli

@@ -22,8 +22,14 @@ int main(int argc, char** argv) {
   RegisterModelCommand(app);
   RegisterPoseCommand(app);
   RegisterExportCommand(app);
+  RegisterFrfCommand(app);
+  RegisterSynthesizeCommand(app);
+  RegisterDiagnoseCommand(app);
   RegisterDisturbanceCommand(app);
   RegisterEstimateCommand(app);
+  RegisterCompareCommand(app);
+  RegisterFitCommand(app);
+  RegisterSimulateCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -271,11 +271,20 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       }
     }
   }
+  const bool has_weights = options.use_coherence && measurement.has_coherence();
   for (int o = 0; o < no; ++o) {
     for (int i = 0; i < ni; ++i) {
-      if (c.significance_(o, i) >= options.significance_threshold && c.significance_(o, i) > 0.0) {
-        c.used_elements_.push_back({o, i});
+      if (!(c.significance_(o, i) >= options.significance_threshold && c.significance_(o, i) > 0.0)) continue;
+      // An off-diagonal element that is mostly noise (median coherence SNR below the minimum) carries no
+      // information about the model: a symmetric structure's cross-talk measured through noise.
+      const bool diagonal = c.space_ == ComparisonSpace::kCompliance && o == i;
+      if (!diagonal && has_weights && options.min_element_snr > 0.0) {
+        std::vector<double> w(nf);
+        for (int k = 0; k < nf; ++k) w[k] = c.weights_[k](o, i);
+        std::nth_element(w.begin(), w.begin() + nf / 2, w.end());
+        if (w[nf / 2] < options.min_element_snr) continue;
       }
+      c.used_elements_.push_back({o, i});
     }
   }
 

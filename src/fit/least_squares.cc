@@ -306,6 +306,8 @@ StageResult RunNlopt(const ceres::CostFunction& cost, const ParameterMap& map, c
   context.base.stage = "nlopt";
   context.t0 = t0;
   nlopt_set_min_objective(opt.get(), NloptObjective, &context);
+  // Stochastic algorithms (CRS, ISRES, MLSL) draw from NLopt's global generator: seed it per start.
+  nlopt_srand(static_cast<unsigned long>(options.seed + 7919u * static_cast<std::uint64_t>(base.start)));
   std::vector<double> x(theta0.data(), theta0.data() + n);
   double f = kInf;
   const nlopt_result code = nlopt_optimize(opt.get(), x.data(), &f);

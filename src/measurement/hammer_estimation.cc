@@ -517,8 +517,8 @@ std::string EstimationSummary::BriefReport() const {
     s << "Exponential window: tau = " << 1.0 / added_decay_rate_1_s << " s adds the decay rate "
       << added_decay_rate_1_s << " 1/s, i.e. a damping ratio of";
     for (double f : {10.0, 100.0, 1000.0}) {
-      s << " " << std::setprecision(3) << added_decay_rate_1_s / (2.0 * kPi * f) << " at " << f
-        << " Hz" << (f < 1000.0 ? "," : "");
+      s << " " << std::setprecision(3) << added_decay_rate_1_s / (2.0 * kPi * f) << " at "
+        << static_cast<int>(f) << " Hz" << (f < 1000.0 ? "," : "");
     }
     s << "; correct identified modes with zeta = zeta_measured - 1/(tau omega_n)\n";
   } else {

@@ -166,9 +166,11 @@ FrfData ProjectToFrame(const FrfData& raw, const Eigen::Vector3d& default_p_WXo)
   const auto sensor_groups = GroupByBody(raw.outputs, raw, "sensor");
   const auto impact_groups = GroupByBody(raw.inputs, raw, "impact");
   if (sensor_groups.size() > 1 || impact_groups.size() > 1) {
-    throw InputError(Where(raw) + ": sensor_body/impact_body: channels on several bodies ('" +
-                     sensor_groups.front().first + "', '" +
-                     (sensor_groups.size() > 1 ? sensor_groups[1].first : impact_groups[1].first) +
+    const bool sensors = sensor_groups.size() > 1;
+    const auto& groups = sensors ? sensor_groups : impact_groups;
+    throw InputError(Where(raw) + ": " + (sensors ? "sensor_body" : "impact_body") +
+                     ": channels on several bodies ('" + groups[0].first + "', '" +
+                     groups[1].first +
                      "'), expected one body for the projection to {X}; project per body instead");
   }
   STAGEFIT_ASSERT(!sensor_groups.empty() && !impact_groups.empty(), "no channels");

@@ -97,7 +97,9 @@ void ExpectIdentical(const RawHammerData& a, const RawHammerData& b) {
   EXPECT_EQ(a.response_full_scale, b.response_full_scale);
   EXPECT_EQ(a.force_full_scale, b.force_full_scale);
   ASSERT_EQ(a.frame_origin_W.has_value(), b.frame_origin_W.has_value());
-  if (a.frame_origin_W) EXPECT_EQ(*a.frame_origin_W, *b.frame_origin_W);
+  if (a.frame_origin_W) {
+    EXPECT_EQ(*a.frame_origin_W, *b.frame_origin_W);
+  }
 }
 
 TEST_F(RawHammerFileTest, WrittenFileReadsBackIdentical) {

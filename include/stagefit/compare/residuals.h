@@ -26,7 +26,9 @@
 //    peak or an antiresonance dip;
 //  - raw space: kappa_oi = G_oi / sqrt(max_j G_oj * max_k G_ki): the element against the strongest
 //    element of its output row and of its input column (all raw elements share one unit).
-// The element is used when kappa_oi >= significance_threshold (default 0.1 = -20 dB). The diagonal
+// The element is used when kappa_oi >= significance_threshold (default 0.1 = -20 dB) and, when the
+// measurement has coherence, an off-diagonal element also needs a median point weight (SNR, below)
+// of at least min_element_snr (default 3) over the band: otherwise it is noise, not response. The diagonal
 // (kappa = 1) is always kept; a strong coupling such as Dx-Ry of a stage whose centre of mass is
 // above {X} has kappa ~ 0.1 ... 0.5; cross-talk of a symmetric stage is orders of magnitude below.
 // |H| is floored at the smallest normal double before the logarithm (an exact zero gives kappa ~ 0).
@@ -99,6 +101,9 @@ struct ComparisonOptions {
   double fmax_hz = std::numeric_limits<double>::infinity();
   /// Elements with kappa >= this are used (header). In [0, 1]; 0 uses every element.
   double significance_threshold = kDefaultSignificanceThreshold;
+  /// With coherence: an off-diagonal element whose median weight (the SNR of its points) over the band
+  /// is below this is not used: it is noise, not response. 0 disables the rule.
+  double min_element_snr = 3.0;
   /// Upper bound of the coherence-derived weight (> 0).
   double coherence_weight_cap = kDefaultCoherenceWeightCap;
   /// Ignore the measurement's coherence (w = 1 everywhere).

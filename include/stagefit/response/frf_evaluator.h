@@ -27,10 +27,10 @@
 //    (2 Nf x 2 npairs) by (2 npairs x Nout Nin); with K_loss != 0 A is complex and one complex GEMM of
 //    (Nf x 2n) by (2n x Nout Nin) is used. Frequencies are processed in blocks that stay in cache.
 //  - kAuto (default) chooses kModal unless the set-up finds it ill-conditioned: the eigen-solver fails,
-//    cond_1(V) > max_condition_number (this also catches nearly repeated, defective poles), a rigid-body
-//    mode (K singular), or the modal result differs from a direct solve by more than check_tolerance at
-//    the probe frequencies (0 Hz and the lowest, a middle and the highest natural frequency). Then
-//    kDirect is used and setup_summary() says why.
+//    cond_1(V) > max_condition_number (this also catches nearly repeated, defective poles),
+//    or the modal result differs from a direct solve by more than check_tolerance at a few probe
+//    frequencies (0 Hz, between neighbouring poles, above the highest). Then kDirect is used and
+//    setup_summary() says why.
 //
 // Derivatives with respect to model parameters (model/parameters.h):
 //     dH/dp = -s^p e^{-s tau} (Cq Z^-1) dZ_p (Z^-1 (B0 + s^2 B2)),
@@ -79,8 +79,9 @@ struct FrfEvaluatorOptions {
   /// kAuto falls back to kDirect above this 1-norm condition number of the (column-normalised)
   /// eigenvector matrix. Rounding in the modal sum grows like eps * cond(V): 1e6 keeps it near 1e-10.
   double max_condition_number = 1e6;
-  /// kAuto falls back to kDirect when the modal result at a probe frequency differs from a direct
-  /// solve by more than this, relative to the largest |H| element at that frequency. 0 skips the probe.
+  /// kAuto falls back to kDirect when the modal result at the probe frequencies (0 Hz, between
+  /// neighbouring poles, twice the highest pole) differs from a direct solve by more than this,
+  /// relative to the largest response to the same input there. 0 skips the probe.
   double check_tolerance = 1e-10;
   /// Frequencies per block of the modal GEMM (keeps the block's buffers in the L2 cache).
   int block_size = 256;
@@ -160,6 +161,11 @@ class FrfEvaluator {
   FrfWithDerivatives EvaluateWithDerivatives(const Eigen::VectorXd& frequency_hz, ResponseQuantity quantity,
                                              const std::vector<model::ParameterInfo>& parameters,
                                              const model::AssembledModel& model);
+  /// The same into `out`, whose storage is reused when the sizes match (a fit loop: no allocation of
+  /// the Nf x Nout x Nin x P derivative array per call).
+  void EvaluateWithDerivatives(const Eigen::VectorXd& frequency_hz, ResponseQuantity quantity,
+                               const std::vector<model::ParameterInfo>& parameters,
+                               const model::AssembledModel& model, FrfWithDerivatives* out);
   /// The same for derivatives given directly (entries index the generalised coordinates, < n).
   void EvaluateWithDerivatives(const Eigen::VectorXd& frequency_hz, ResponseQuantity quantity,
                                const std::vector<DynamicStiffnessDerivative>& derivatives,
@@ -199,8 +205,8 @@ class FrfEvaluator {
   // Workspace (reused between calls).
   Eigen::MatrixXcd residue_, block_, coef_complex_;
   Eigen::MatrixXd residue_real_, coef_real_, block_real_;
-  Eigen::ArrayXcd prefactor_, factor_;
-  Eigen::ArrayXd scratch1_, scratch2_;
+  Eigen::ArrayXcd prefactor_, factor_, scaled_x_;
+  Eigen::ArrayXd scratch1_, scratch2_, scratch3_;
 };
 
 }  // namespace stagefit::response

@@ -1,0 +1,105 @@
+#pragma once
+// Diagnose: where a model fails against a measurement, and which physical effect of the catalogue
+// (model/effects.h) explains it.
+//
+// Procedure (docs/diagnose.md):
+//  1. Baseline. The model's own parameters (default: every joint stiffness) are fitted to the
+//     measurement; what remains is the error a missing effect has to explain.
+//  2. Candidates. Every catalogued effect at every location where it applies is added to the baseline
+//     model and fitted together with the model's parameters: first a short fit of every candidate
+//     (screening), then a full fit of the most promising ones.
+//  3. Ranking by the Bayesian information criterion of the weighted residuals against the baseline,
+//         delta_BIC = n ln(error_after^2 / error_baseline^2) + k ln(n),
+//     n = number of residuals (2 per used point), k = parameters the effect adds. Under the hypothesis
+//     that the baseline's remaining error is measurement noise (independent between points), an effect
+//     that only fits noise lowers n ln(error^2) by about k, less than its penalty k ln(n): BIC then
+//     prefers the baseline, which is how diagnose avoids inventing explanations. An effect is
+//     reported as explaining the data when delta_BIC < 0 AND it lowers the error by at least
+//     `min_relative_improvement` (a systematic misfit that is not noise would otherwise let any
+//     flexible effect "win" by a little).
+//  4. Where. The bands and elements carrying the baseline's error, measured modes without a model
+//     partner and model modes without a measured one (with the joint DoF holding their strain energy),
+//     and the rigid-body consistency of the measurement.
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "stagefit/compare/mode_pairing.h"
+#include "stagefit/compare/residuals.h"
+#include "stagefit/fit/least_squares.h"
+#include "stagefit/measurement/frf_data.h"
+#include "stagefit/model/effects.h"
+#include "stagefit/model/model_spec.h"
+
+namespace stagefit::diagnose {
+
+struct DiagnoseOptions {
+  compare::ComparisonOptions comparison;
+  /// The model's own parameters fitted in the baseline and with every candidate (--params patterns).
+  std::vector<std::string> params = {"*.k.*"};
+  /// Effects to try (catalogue names); empty = the whole catalogue.
+  std::vector<std::string> effects;
+  int screening_iterations = 4;   ///< iterations of the short fit of every candidate
+  int num_refined = 10;           ///< candidates refitted fully after screening
+  int refine_iterations = 30;
+  int baseline_iterations = 50;
+  double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
+  int num_threads = 2;
+  std::function<void(const std::string&)> progress;  ///< one line per stage, for a terminal
+};
+
+struct Candidate {
+  model::Effect effect;          ///< with its fitted parameters
+  std::string with;              ///< the --with text that adds it: effect.ToString()
+  double error_after = 0;        ///< SPEC §4 error after fitting effect + model parameters
+  double delta_bic = 0;          ///< against the baseline (header); < 0 supports the effect
+  int num_parameters = 0;        ///< parameters the effect adds
+  bool helps = false;            ///< the criterion of the header is met
+  bool refined = false;          ///< fully fitted (else screening only)
+  std::map<std::string, double> model_parameters;  ///< fitted model parameters with the effect
+  std::string explanation;       ///< words for a user (top candidates)
+};
+
+struct ModeMismatch {
+  double measured_hz = 0;
+  double model_hz = 0;
+  double mac = 0;
+  std::string dominant_dof;      ///< joint DoF holding most of the model mode's strain energy
+};
+
+struct DiagnoseSummary {
+  double error_initial = 0;      ///< the model as given
+  double error_baseline = 0;     ///< after fitting the model's own parameters
+  int num_residuals = 0;
+  model::ModelSpec baseline;     ///< the fitted model without effects
+  std::vector<Candidate> candidates;   ///< ranked, best first
+  bool effect_found = false;     ///< the best candidate helps
+  std::string verdict;           ///< one paragraph
+  // Where.
+  std::vector<compare::BandError> worst_bands;
+  std::vector<compare::ElementError> worst_elements;
+  std::vector<ModeMismatch> mispaired_modes;
+  std::vector<double> unpaired_measured_hz;
+  std::vector<std::pair<double, std::string>> unpaired_model;  ///< frequency, dominant DoF
+  double time_s = 0;
+  std::string BriefReport(int max_candidates = 8) const;
+};
+
+/// Runs the procedure of the header. Throws InputError for a measurement or options that the
+/// comparison rejects; numerical trouble of individual candidates only drops those candidates.
+DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                         const DiagnoseOptions& options = {});
+
+/// Fits `effect` (parameters as starting values) together with `params` of `base`, returns the fit
+/// summary and the fitted effect; `spec_out` (optional) receives the model with the effect applied.
+struct EffectFit {
+  model::Effect effect;
+  fit::FitSummary summary;
+  model::ModelSpec spec;
+};
+EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
+                    const std::vector<std::string>& params, int max_iterations);
+
+}  // namespace stagefit::diagnose

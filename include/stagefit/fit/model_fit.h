@@ -1,0 +1,87 @@
+#pragma once
+// Fitting model parameters (model/parameters.h) to a measurement through a compare::Comparison:
+// the least-squares core (least_squares.h) minimises the comparison's residuals r, whose norm is the
+// SPEC §4 error scalar, with the analytic Jacobian J = dr/dp of the response layer.
+//
+// Parameterisation and bounds. Positive parameters (ParameterInfo::positive: stiffness, damping, loss
+// factor) with a positive value are fitted as ln p. Bounds are natural units; without a rule they are
+// [p0 / kDefaultBoundFactor, p0 * kDefaultBoundFactor] around the initial value p0 for positive
+// parameters (a factor 100 is far beyond the uncertainty of a catalogue stiffness yet keeps the model
+// physical), [0, +inf) for a positive parameter that starts at 0, and unbounded for the others.
+
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "stagefit/compare/residuals.h"
+#include "stagefit/fit/least_squares.h"
+#include "stagefit/model/model_spec.h"
+#include "stagefit/model/parameters.h"
+
+namespace stagefit::fit {
+
+/// The default bound factor around the initial value of a positive parameter.
+inline constexpr double kDefaultBoundFactor = 100.0;
+
+/// Bounds for the parameters whose names match `pattern` (shell globbing, as for --params). Rules apply
+/// in order; a later matching rule overrides the fields it sets.
+struct BoundRule {
+  std::string pattern;
+  std::optional<double> lower;    ///< natural SI units of the matched parameters
+  std::optional<double> upper;
+  std::optional<double> factor;   ///< [p0 / factor, p0 * factor] (> 1); lower/upper override it
+  /// The dimension `lower` and `upper` were given in (from a unit string); unset for bare SI numbers.
+  /// A matched parameter of another dimension is an error.
+  std::optional<Dimension> dimension;
+  std::string source;             ///< "file:line" for messages; empty when built in code
+};
+
+/// The least-squares problem "parameters of `spec` -> residuals of `comparison`". Holds a copy of
+/// `spec` as its workspace: not thread-safe (use one per thread).
+class ModelFitProblem final : public LeastSquaresProblem {
+ public:
+  /// `parameters` from model::MatchParameters(spec, ...) (or ListParameters). `comparison` must outlive
+  /// the problem.
+  ModelFitProblem(const model::ModelSpec& spec, const compare::Comparison& comparison,
+                  std::vector<model::ParameterInfo> parameters);
+  int num_parameters() const override { return static_cast<int>(parameters_.size()); }
+  int num_residuals() const override { return comparison_->num_residuals(); }
+  bool has_jacobian() const override { return true; }
+  /// Sets the parameters to `p` (natural units) with model::SetParameter and evaluates
+  /// comparison.ResidualsAndJacobian(). Returns false when the model is invalid at `p` or its response
+  /// is not finite (InputError / NumericalError from the comparison).
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) const override;
+
+  const std::vector<model::ParameterInfo>& parameters() const { return parameters_; }
+
+ private:
+  mutable model::ModelSpec spec_;
+  const compare::Comparison* comparison_;
+  std::vector<model::ParameterInfo> parameters_;
+};
+
+/// The ParameterSpec of each parameter: name, SI unit, initial value from `spec`, log scale for
+/// positive parameters with a positive value, bounds from the defaults (header) and `bounds`.
+/// Throws InputError (naming the rule's source, pattern and value) when a rule matches none of
+/// `parameters`, gives a factor <= 1, lower > upper, a unit of another dimension than a matched
+/// parameter, a non-positive lower bound for a log-scale parameter, or bounds that exclude the
+/// initial value.
+std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
+                                              const std::vector<model::ParameterInfo>& parameters,
+                                              const std::vector<BoundRule>& bounds = {});
+
+/// Fits `parameters` of `spec` to the measurement of `comparison`. On return `spec` holds the values
+/// of the kept optimum (also when the fit did not converge: the status says so) and one more history
+/// entry {"fit", error after, detail}; summary.initial_error is comparison.Error() of the model as
+/// given and summary.final_error is comparison.Error(spec) of the returned spec, so that writing
+/// `spec` (model::WriteModelFile) and loading it again reproduces final_error exactly.
+/// Throws InputError as MakeParameterSpecs() and Solve() do; numerical failure is in the status.
+FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& comparison,
+                    const std::vector<model::ParameterInfo>& parameters, const FitOptions& options,
+                    const std::vector<BoundRule>& bounds = {});
+
+/// Matches a parameter name against a shell pattern (fnmatch semantics, as model::MatchParameters).
+bool MatchesPattern(const std::string& name, const std::string& pattern);
+
+}  // namespace stagefit::fit

@@ -1,0 +1,97 @@
+#pragma once
+// Synthetic hammer-test measurements with known truth, for tests, benchmarks, the shipped example data
+// and the evaluation of `diagnose` on data with hidden effects.
+//
+// The FRFs come from a deliberately independent, brute-force code path that shares nothing with the
+// model assembly and the response layer under test: ABSOLUTE body coordinates (6 per body at its CoM),
+// every joint's relative motion built directly from both bodies' motions, imposed DoF and rigid
+// attachments eliminated by an SVD null-space basis of the constraint rows, and a dense complex solve
+// per frequency. Hidden effects are written here as edits of the truth model's bodies and joints (a
+// payload is a separate body rigidly attached by a joint whose six DoF are all imposed), not through
+// the effects catalogue.
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "stagefit/measurement/frf_data.h"
+#include "stagefit/measurement/hammer_estimation.h"
+#include "stagefit/model/model_spec.h"
+
+namespace stagefit::synthetic {
+
+/// Exact FRFs of `truth` between force inputs at `impacts` and translation outputs at `sensors`
+/// (channel geometry in W, on named bodies), by the brute-force path. The truth's loss factors,
+/// gyroscopic spin and acquisition delay are included. Returns FrfData with the given channels.
+/// Throws InputError for unknown bodies.
+measurement::FrfData CalcBruteForceFrf(const model::ModelSpec& truth,
+                                       const std::vector<measurement::ChannelGeometry>& sensors,
+                                       const std::vector<measurement::ChannelGeometry>& impacts,
+                                       const Eigen::VectorXd& frequency_hz, measurement::FrfQuantity quantity);
+
+/// Measurement noise: each averaged FRF point gets relative noise (complex Gaussian, standard deviation
+/// `relative` of |H|) plus absolute noise (standard deviation `absolute` times the RMS of |H| of that
+/// element over the band). The absolute part makes the coherence drop at antiresonances, as in a real
+/// hammer test. Coherence is set to |H|^2 / (|H|^2 + sigma^2) with sigma^2 the point's total noise
+/// variance (the coherence of an H1 estimate whose output noise has that variance).
+struct NoiseOptions {
+  double relative = 0.01;
+  double absolute = 0.01;
+  uint64_t seed = 1;
+};
+void AddNoise(measurement::FrfData& data, const NoiseOptions& options);
+
+/// The micro-station's compliance-test geometry (SPEC §2) as channels: 12 accelerometer channels and
+/// 10 hammer impacts on `body`, positions relative to the frame origin `p_WXo`.
+std::vector<measurement::ChannelGeometry> ComplianceTestSensors(const std::string& body, const Eigen::Vector3d& p_WXo);
+std::vector<measurement::ChannelGeometry> ComplianceTestImpacts(const std::string& body, const Eigen::Vector3d& p_WXo);
+
+/// Log-spaced frequencies, Hz.
+Eigen::VectorXd LogFrequencies(double fmin_hz, double fmax_hz, int count);
+
+/// A hidden-effect test case: a truth model made from the nominal one by scattering its stiffnesses and
+/// adding zero, one or two physical effects at random locations and magnitudes large enough to matter,
+/// and its noisy 12x10 accelerance measurement of the top plate with the DECLARED (nominal) geometry.
+struct HiddenEffect {
+  std::string name;       ///< catalogue name, e.g. "payload"
+  std::string location;   ///< catalogue location, e.g. "hexapod"
+  std::string description;
+};
+struct HiddenEffectCase {
+  uint64_t seed = 0;
+  model::ModelSpec truth;
+  std::vector<HiddenEffect> effects;
+  measurement::FrfData measurement;
+  std::vector<std::string> scattered_parameters;  ///< "<joint>.k.<Dof>" that were scattered
+};
+struct HiddenEffectOptions {
+  int num_effects = 1;              ///< 0, 1 or 2
+  double stiffness_scatter = 0.15;  ///< log-normal sigma of the stiffness factors (clipped to [1/1.6, 1.6])
+  double noise_min = 0.01, noise_max = 0.03;
+  double fmin_hz = 10.0, fmax_hz = 400.0;
+  int num_frequencies = 300;
+};
+HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
+
+/// Raw hammer-test time data of `truth`: for every impact, `hits_per_impact` half-sine force pulses
+/// (duration `pulse_s`, peak `peak_force_n`, start jittered), and the accelerometer records computed in
+/// the frequency domain from the brute-force FRFs (the record is long enough for the responses to
+/// decay, so the circular convolution equals the linear one to the noise level), plus Gaussian noise
+/// of `noise` times each channel's RMS on responses and forces.
+struct RawHammerOptions {
+  double sample_rate_hz = 2048;
+  int num_samples = 4096;
+  int hits_per_impact = 3;
+  double pulse_s = 1.5e-3;
+  double peak_force_n = 300;
+  double noise = 0.005;
+  uint64_t seed = 1;
+};
+measurement::RawHammerData MakeRawHammerTest(const model::ModelSpec& truth,
+                                             const std::vector<measurement::ChannelGeometry>& sensors,
+                                             const std::vector<measurement::ChannelGeometry>& impacts,
+                                             const RawHammerOptions& options);
+
+}  // namespace stagefit::synthetic

@@ -1,0 +1,100 @@
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "command.h"
+#include "report.h"
+#include "stagefit/common/error.h"
+#include "stagefit/diagnose/diagnose.h"
+#include "stagefit/measurement/measurement_file.h"
+#include "stagefit/model/model_file.h"
+
+namespace stagefit::cli {
+
+void RegisterDiagnoseCommand(CLI::App& app) {
+  auto* command = app.add_subcommand(
+      "diagnose",
+      "where the model fails against a measurement, and which physical effect of the catalogue explains it, ranked");
+  struct Options {
+    CommonOptions common;
+    std::string measurement;
+    std::string space = "compliance";
+    std::string params = "*.k.*";
+    std::string effects;
+    double fmin = 0, fmax = 0;
+    std::string out;
+  };
+  auto o = std::make_shared<Options>();
+  AddCommonOptions(*command, o->common);
+  AddWithOption(*command, o->common);
+  command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
+  command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
+      ->check(CLI::IsMember({"compliance", "raw"}));
+  command->add_option("--params", o->params, "model parameters fitted with every candidate (comma-separated patterns)")
+      ->capture_default_str();
+  command->add_option("--effects", o->effects, "only these catalogue effects (comma-separated); default all");
+  command->add_option("--fmin", o->fmin, "lower end of the band, Hz");
+  command->add_option("--fmax", o->fmax, "upper end of the band, Hz");
+  command->add_option("--out", o->out, "write the baseline with the best effect applied (model file) here");
+  command->callback([o] {
+    model::ModelSpec spec = LoadModelFromOptions(o->common);
+    measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
+    diagnose::DiagnoseOptions options;
+    options.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+    if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;
+    if (o->fmax > 0) options.comparison.fmax_hz = o->fmax;
+    auto split = [](const std::string& text) {
+      std::vector<std::string> out;
+      std::stringstream s(text);
+      for (std::string item; std::getline(s, item, ',');) {
+        if (!item.empty()) out.push_back(item);
+      }
+      return out;
+    };
+    options.params = split(o->params);
+    options.effects = split(o->effects);
+    for (const auto& e : options.effects) model::FindEffectDefinition(e);
+    if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "diagnose: " << line << std::endl; };
+    diagnose::DiagnoseSummary summary = diagnose::Diagnose(spec, data, options);
+    std::printf("%s", summary.BriefReport().c_str());
+    std::printf("(%.1f s)\n", summary.time_s);
+    std::vector<std::string> inputs = {o->common.model_path, o->measurement};
+    if (!o->out.empty() && summary.effect_found) {
+      CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
+      model::ModelSpec with = summary.baseline;
+      model::ApplyEffect(with, summary.candidates[0].effect);
+      model::WriteModelFile(o->out, with);
+      std::printf("wrote %s (baseline with %s; refit it with stagefit fit)\n", o->out.c_str(), summary.candidates[0].with.c_str());
+    }
+    if (!o->common.report_path.empty()) {
+      nlohmann::json candidates = nlohmann::json::array();
+      for (const auto& c : summary.candidates) {
+        candidates.push_back({{"effect", c.effect.name}, {"location", c.effect.location}, {"with", c.with},
+                              {"error_after", c.error_after}, {"delta_bic", c.delta_bic}, {"helps", c.helps},
+                              {"parameters", c.effect.parameters}, {"explanation", c.explanation}});
+      }
+      nlohmann::json bands = nlohmann::json::array(), elements = nlohmann::json::array(), modes = nlohmann::json::array();
+      for (const auto& b : summary.worst_bands) {
+        bands.push_back({{"low_hz", b.band.low_hz}, {"high_hz", b.band.high_hz}, {"error", b.error}, {"share", b.share}});
+      }
+      for (const auto& e : summary.worst_elements) elements.push_back({{"element", e.name}, {"error", e.error}, {"share", e.share}});
+      for (const auto& m : summary.mispaired_modes) {
+        modes.push_back({{"measured_hz", m.measured_hz}, {"model_hz", m.model_hz}, {"mac", m.mac}, {"dominant_dof", m.dominant_dof}});
+      }
+      nlohmann::json report = {{"command", "diagnose"},
+                               {"error", summary.error_initial},
+                               {"error_baseline", summary.error_baseline},
+                               {"effect_found", summary.effect_found},
+                               {"verdict", summary.verdict},
+                               {"candidates", candidates},
+                               {"where", {{"bands", bands}, {"elements", elements}, {"mispaired_modes", modes},
+                                          {"unpaired_measured_hz", summary.unpaired_measured_hz}}},
+                               {"time_s", summary.time_s}};
+      WriteReport(o->common.report_path, report, inputs);
+    }
+  });
+}
+
+}  // namespace stagefit::cli

@@ -1,0 +1,456 @@
+#include "stagefit/diagnose/diagnose.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "stagefit/common/error.h"
+#include "stagefit/fit/model_fit.h"
+#include "stagefit/model/assembled_model.h"
+#include "stagefit/model/modes.h"
+#include "stagefit/model/parameters.h"
+
+namespace stagefit::diagnose {
+namespace {
+
+double Clock() {
+  using namespace std::chrono;
+  return duration<double>(steady_clock::now().time_since_epoch()).count();
+}
+
+std::string Format(const char* format, double a = 0, double b = 0, double c = 0) {
+  char buffer[256];
+  std::snprintf(buffer, sizeof buffer, format, a, b, c);
+  return buffer;
+}
+
+/// Search ranges of the effect parameters (natural units), from the model around the location.
+std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& base, const model::Effect& effect) {
+  const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
+  std::vector<fit::ParameterSpec> specs;
+  for (const auto& p : def.parameters) {
+    fit::ParameterSpec s;
+    s.name = effect.name + "." + p.name;
+    s.unit = SiUnit(p.dimension);
+    s.initial = effect.parameters.at(p.name);
+    if (p.dimension == dim::kLength) {
+      s.lower = -0.3;
+      s.upper = 0.3;
+    } else if (p.dimension == dim::kAngle) {
+      s.lower = -0.6;
+      s.upper = 0.6;
+    } else if (effect.name == "coupled-stiffness") {
+      // |k_ab| < sqrt(k_aa k_bb) keeps the joint positive definite.
+      const int dot = static_cast<int>(effect.location.rfind('.'));
+      const auto& joint = base.joints[model::FindJoint(base, effect.location.substr(0, dot))];
+      const auto a = *ParseDof(effect.location.substr(dot + 1, 2));
+      const auto b = *ParseDof(effect.location.substr(dot + 4, 2));
+      const double limit = 0.95 * std::sqrt(joint.stiffness[index(a)] * joint.stiffness[index(b)]);
+      s.lower = -limit;
+      s.upper = limit;
+    } else if (effect.name == "gyroscopic") {
+      s.lower = -1000;
+      s.upper = 1000;
+    } else if (p.positive && s.initial > 0) {
+      s.log_scale = true;
+      double factor = 1e3;
+      if (p.name == "eta" || p.name == "zeta") factor = 30;
+      if (effect.name == "delay") factor = 100;
+      s.lower = s.initial / factor;
+      s.upper = s.initial * factor;
+      if (p.name == "mass" && effect.name == "payload") s.upper = std::min(s.upper, 20.0 * s.initial);
+    }
+    specs.push_back(s);
+  }
+  return specs;
+}
+
+/// Effect parameters followed by model parameters -> the comparison's residuals. The model
+/// parameters' Jacobian columns are analytic; the effect's come from central differences.
+class EffectProblem final : public fit::LeastSquaresProblem {
+ public:
+  EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison, model::Effect effect,
+                std::vector<fit::ParameterSpec> effect_specs, std::vector<model::ParameterInfo> model_params)
+      : base_(base),
+        comparison_(&comparison),
+        effect_(std::move(effect)),
+        effect_specs_(std::move(effect_specs)),
+        model_params_(std::move(model_params)) {}
+
+  int num_parameters() const override { return static_cast<int>(effect_specs_.size() + model_params_.size()); }
+  int num_residuals() const override { return comparison_->num_residuals(); }
+  bool has_jacobian() const override { return true; }
+
+  model::Effect EffectAt(const Eigen::VectorXd& p) const {
+    model::Effect e = effect_;
+    const model::EffectDefinition& def = model::FindEffectDefinition(e.name);
+    for (size_t i = 0; i < effect_specs_.size(); ++i) e.parameters[def.parameters[i].name] = p(static_cast<int>(i));
+    return e;
+  }
+
+  bool SpecAt(const Eigen::VectorXd& p, model::ModelSpec* spec) const {
+    *spec = base_;
+    try {
+      model::ApplyEffect(*spec, EffectAt(p));
+      const int ne = static_cast<int>(effect_specs_.size());
+      for (size_t k = 0; k < model_params_.size(); ++k) model::SetParameter(*spec, model_params_[k], p(ne + static_cast<int>(k)));
+    } catch (const InputError&) {
+      return false;
+    }
+    return true;
+  }
+
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    model::ModelSpec spec;
+    if (!SpecAt(p, &spec)) return false;
+    const int ne = static_cast<int>(effect_specs_.size());
+    try {
+      if (!J) {
+        comparison_->Residuals(spec, r);
+        return r->allFinite();
+      }
+      Eigen::MatrixXd Jm;
+      comparison_->ResidualsAndJacobian(spec, model_params_, r, &Jm);
+      J->resize(r->size(), num_parameters());
+      J->rightCols(Jm.cols()) = Jm;
+      for (int i = 0; i < ne; ++i) {
+        const fit::ParameterSpec& s = effect_specs_[i];
+        double h;
+        if (s.log_scale) {
+          h = 1e-5 * std::abs(p(i));
+        } else if (std::isfinite(s.upper - s.lower)) {
+          h = 1e-6 * (s.upper - s.lower);
+        } else {
+          h = 1e-6 * std::max(1.0, std::abs(p(i)));
+        }
+        Eigen::VectorXd plus = p, minus = p, r_plus, r_minus;
+        plus(i) += h;
+        minus(i) -= h;
+        model::ModelSpec sp, sm;
+        if (!SpecAt(plus, &sp) || !SpecAt(minus, &sm)) return false;
+        comparison_->Residuals(sp, &r_plus);
+        comparison_->Residuals(sm, &r_minus);
+        J->col(i) = (r_plus - r_minus) / (2 * h);
+      }
+      return r->allFinite() && J->allFinite();
+    } catch (const InputError&) {
+      return false;
+    } catch (const NumericalError&) {
+      return false;
+    }
+  }
+
+ private:
+  model::ModelSpec base_;
+  const compare::Comparison* comparison_;
+  model::Effect effect_;
+  std::vector<fit::ParameterSpec> effect_specs_;
+  std::vector<model::ParameterInfo> model_params_;
+};
+
+std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const std::vector<std::string>& patterns) {
+  if (patterns.empty()) return {};
+  return model::MatchParameters(spec, patterns);
+}
+
+std::string Explain(const Candidate& c, const model::ModelSpec& baseline) {
+  const auto& p = c.effect.parameters;
+  auto get = [&](const char* k) { return p.count(k) ? p.at(k) : 0.0; };
+  const std::string& where = c.effect.location;
+  const std::string& n = c.effect.name;
+  if (n == "payload") {
+    return Format("a payload of about %.1f kg, %.0f mm above", get("mass"), 1e3 * get("z")) + " the centre of mass of " + where +
+           Format(" (%.0f mm off-axis)", 1e3 * std::hypot(get("x"), get("y")));
+  }
+  if (n == "extra-body") {
+    const double f = std::sqrt(get("k") / get("mass")) / (2 * M_PI);
+    return Format("a body of about %.1f kg", get("mass")) + " attached to " + where +
+           Format(" by a compliant joint: a local mode near %.0f Hz", f);
+  }
+  if (n == "servo-stiffness") {
+    return "the drive of " + where + " is not rigid: it behaves as a spring of " + Format("%.3g", get("k")) +
+           " (N/m or Nm/rad)";
+  }
+  if (n == "joint-offset") {
+    return "the stiffness centre of joint " + where + Format(" is offset by (%.0f, %.0f, %.0f) mm", 1e3 * get("dx"), 1e3 * get("dy"), 1e3 * get("dz")) +
+           " from where the model puts it";
+  }
+  if (n == "coupled-stiffness") {
+    const int dot = static_cast<int>(where.rfind('.'));
+    return "joint " + where.substr(0, dot) + " couples " + where.substr(dot + 1, 2) + " and " + where.substr(dot + 4, 2) +
+           Format(" (coupling stiffness %.3g)", get("k"));
+  }
+  if (n == "structural-damping") {
+    return "joint " + where + Format(" dissipates as a hysteretic loss factor of %.3f", get("eta")) +
+           " rather than as viscous damping";
+  }
+  if (n == "sensor-geometry") {
+    return "channel " + where + Format(" is not where declared: offset (%.1f, %.1f, %.1f) mm", 1e3 * get("dx"), 1e3 * get("dy"), 1e3 * get("dz")) +
+           Format(", rotated by (%.1f, %.1f, %.1f) deg", get("rx") * 180 / M_PI, get("ry") * 180 / M_PI, get("rz") * 180 / M_PI);
+  }
+  if (n == "delay") return Format("the acquisition chain delays the signals by %.3f ms", 1e3 * get("tau"));
+  if (n == "gyroscopic") return Format("the subtree above joint ") + where + Format(" spins at %.1f rpm", get("spin") * 60 / (2 * M_PI));
+  (void)baseline;
+  return c.with;
+}
+
+/// "explains why the model's mode at X Hz is measured at Y Hz": the measured mode whose pairing
+/// improves most when the effect is added.
+std::string ModeSentence(const compare::Comparison& comparison, const model::ModelSpec& baseline, const model::ModelSpec& with) {
+  try {
+    auto before = compare::PairModes(comparison, comparison.EvaluateModel(baseline), baseline);
+    auto after = compare::PairModes(comparison, comparison.EvaluateModel(with), with);
+    double best_gain = 0.0;
+    std::string sentence;
+    for (const auto& pb : before.pairs) {
+      const double fm = before.measured[pb.measured].frequency_hz;
+      for (const auto& pa : after.pairs) {
+        if (std::abs(after.measured[pa.measured].frequency_hz - fm) > 1e-9 * fm) continue;
+        const double gain = std::abs(pb.frequency_error) - std::abs(pa.frequency_error);
+        if (gain > best_gain && std::abs(pb.frequency_error) > 0.01) {
+          best_gain = gain;
+          sentence = Format("; it explains why the model's mode at %.1f Hz is measured at %.1f Hz (with it: %.1f Hz)",
+                            before.model[pb.model].frequency_hz, fm, after.model[pa.model].frequency_hz);
+        }
+      }
+    }
+    if (sentence.empty() && !before.unpaired_measured.empty()) {
+      for (int m : before.unpaired_measured) {
+        const double fm = before.measured[m].frequency_hz;
+        for (const auto& pa : after.pairs) {
+          if (std::abs(after.measured[pa.measured].frequency_hz - fm) <= 1e-9 * fm) {
+            return Format("; it explains the measured mode at %.1f Hz that the model lacked (with it: %.1f Hz)", fm,
+                          after.model[pa.model].frequency_hz);
+          }
+        }
+      }
+    }
+    return sentence;
+  } catch (const std::exception&) {
+    return "";
+  }
+}
+
+}  // namespace
+
+EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
+                    const std::vector<std::string>& params, int max_iterations) {
+  std::vector<fit::ParameterSpec> effect_specs = EffectParameterSpecs(base, effect);
+  std::vector<model::ParameterInfo> model_params = MatchQuiet(base, params);
+  std::vector<fit::ParameterSpec> specs = effect_specs;
+  for (const auto& s : fit::MakeParameterSpecs(base, model_params)) specs.push_back(s);
+  EffectProblem problem(base, comparison, effect, effect_specs, model_params);
+  fit::FitOptions options;
+  options.max_iterations = max_iterations;
+  options.function_tolerance = 1e-8;
+  EffectFit result;
+  result.summary = fit::Solve(problem, specs, options);
+  Eigen::VectorXd p = result.summary.values();
+  result.effect = problem.EffectAt(p);
+  if (!problem.SpecAt(p, &result.spec)) result.spec = base;
+  return result;
+}
+
+DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                         const DiagnoseOptions& options) {
+  const double start = Clock();
+  auto say = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  DiagnoseSummary summary;
+  compare::Comparison comparison = compare::Comparison::Create(spec, measurement, options.comparison);
+  summary.num_residuals = comparison.num_residuals();
+  summary.error_initial = comparison.Error(spec);
+
+  // 1. Baseline.
+  summary.baseline = spec;
+  std::vector<model::ParameterInfo> model_params = MatchQuiet(spec, options.params);
+  if (!model_params.empty()) {
+    fit::FitOptions fo;
+    fo.max_iterations = options.baseline_iterations;
+    fit::FitModel(summary.baseline, comparison, model_params, fo);
+  }
+  summary.error_baseline = comparison.Error(summary.baseline);
+  say(Format("baseline: error %.4f -> %.4f after fitting the model's own parameters", summary.error_initial,
+             summary.error_baseline));
+
+  // 2. Candidates: every effect at every location (extra bodies from three starting local modes).
+  std::vector<std::string> channels;
+  if (comparison.space() == compare::ComparisonSpace::kRaw) {
+    channels = comparison.output_names();
+  }
+  std::vector<model::Effect> tries;
+  for (auto e : model::EnumerateEffects(summary.baseline, channels)) {
+    if (!options.effects.empty() &&
+        std::find(options.effects.begin(), options.effects.end(), e.name) == options.effects.end()) {
+      continue;
+    }
+    if (e.name == "gyroscopic") continue;  // spin is set by the experiment, not fitted from hammer data
+    if (e.name == "extra-body") {
+      for (double f : {50.0, 120.0, 300.0}) {
+        const double w = 2 * M_PI * f;
+        e.parameters["k"] = e.parameters["mass"] * w * w;
+        e.parameters["kr"] = e.parameters["mass"] * 0.0025 * w * w;
+        tries.push_back(e);
+      }
+    } else {
+      tries.push_back(e);
+    }
+  }
+  const double n = comparison.num_residuals();
+  auto score = [&](const EffectFit& f, Candidate* c, bool refined) {
+    c->effect = f.effect;
+    c->with = f.effect.ToString();
+    c->error_after = f.summary.final_error;
+    c->num_parameters = static_cast<int>(model::FindEffectDefinition(f.effect.name).parameters.size());
+    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(summary.error_baseline, 2)) + c->num_parameters * std::log(n);
+    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * summary.error_baseline;
+    c->refined = refined;
+    c->model_parameters.clear();
+    for (const auto& p : f.summary.parameters) c->model_parameters[p.name] = p.value;
+  };
+  auto run = [&](const std::vector<model::Effect>& list, int iterations, bool refined) {
+    std::vector<Candidate> out(list.size());
+    std::vector<bool> ok(list.size(), false);
+    std::atomic<size_t> next{0};
+    auto worker = [&] {
+      for (size_t i = next++; i < list.size(); i = next++) {
+        try {
+          EffectFit f = FitEffect(summary.baseline, comparison, list[i], options.params, iterations);
+          if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) continue;
+          score(f, &out[i], refined);
+          ok[i] = true;
+        } catch (const std::exception&) {
+        }
+      }
+    };
+    std::vector<std::thread> threads;
+    for (int t = 1; t < std::max(1, options.num_threads); ++t) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
+    std::vector<Candidate> kept;
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (ok[i]) kept.push_back(out[i]);
+    }
+    return kept;
+  };
+  say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
+  std::vector<Candidate> screened = run(tries, options.screening_iterations, false);
+  std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return a.error_after < b.error_after; });
+  // Keep the best start per (effect, location), then refine the most promising ones.
+  std::vector<Candidate> unique;
+  for (const auto& c : screened) {
+    bool seen = false;
+    for (const auto& u : unique) seen = seen || (u.effect.name == c.effect.name && u.effect.location == c.effect.location);
+    if (!seen) unique.push_back(c);
+  }
+  std::vector<model::Effect> refine;
+  for (size_t i = 0; i < unique.size() && static_cast<int>(i) < options.num_refined; ++i) refine.push_back(unique[i].effect);
+  say(Format("refining the best %.0f", static_cast<double>(refine.size())));
+  std::vector<Candidate> refined = run(refine, options.refine_iterations, true);
+  for (auto& c : unique) {
+    for (const auto& r : refined) {
+      if (r.effect.name == c.effect.name && r.effect.location == c.effect.location && r.error_after <= c.error_after) c = r;
+    }
+  }
+  std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
+  summary.candidates = unique;
+  for (size_t i = 0; i < summary.candidates.size() && i < 5; ++i) {
+    Candidate& c = summary.candidates[i];
+    model::ModelSpec with = summary.baseline;
+    try {
+      model::ApplyEffect(with, c.effect);
+      for (const auto& [name, value] : c.model_parameters) {
+        for (const auto& p : model_params) {
+          if (p.name == name) model::SetParameter(with, p, value);
+        }
+      }
+      c.explanation = Explain(c, summary.baseline) + ModeSentence(comparison, summary.baseline, with);
+    } catch (const std::exception&) {
+      c.explanation = Explain(c, summary.baseline);
+    }
+  }
+  summary.effect_found = !summary.candidates.empty() && summary.candidates[0].helps;
+
+  // 4. Where.
+  compare::ComparisonResult result = comparison.Evaluate(summary.baseline);
+  summary.worst_bands = result.bands;
+  std::sort(summary.worst_bands.begin(), summary.worst_bands.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
+  if (summary.worst_bands.size() > 5) summary.worst_bands.resize(5);
+  summary.worst_elements = result.elements;
+  std::sort(summary.worst_elements.begin(), summary.worst_elements.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
+  if (summary.worst_elements.size() > 8) summary.worst_elements.resize(8);
+  try {
+    auto pairing = compare::PairModes(comparison, result.model, summary.baseline);
+    for (const auto& p : pairing.pairs) {
+      if (std::abs(p.frequency_error) > 0.03) {
+        summary.mispaired_modes.push_back({pairing.measured[p.measured].frequency_hz, pairing.model[p.model].frequency_hz,
+                                           p.mac, pairing.model[p.model].dominant_dof});
+      }
+    }
+    for (int m : pairing.unpaired_measured) summary.unpaired_measured_hz.push_back(pairing.measured[m].frequency_hz);
+    for (int m : pairing.unpaired_model) {
+      summary.unpaired_model.push_back({pairing.model[m].frequency_hz, pairing.model[m].dominant_dof});
+    }
+  } catch (const std::exception&) {
+  }
+
+  std::ostringstream verdict;
+  if (summary.effect_found) {
+    const Candidate& best = summary.candidates[0];
+    verdict << "Most likely missing: " << best.effect.name << " at " << best.effect.location << ": " << best.explanation
+            << Format(". Adding it lowers the error from %.4f to %.4f. Add it with --with \"", summary.error_baseline, best.error_after)
+            << best.with << "\" and refit.";
+  } else {
+    verdict << Format("No effect of the catalogue explains the remaining error (%.4f after fitting the model's parameters)",
+                      summary.error_baseline)
+            << ": none lowers it by " << Format("%.0f %%", 100 * options.min_relative_improvement)
+            << " with a better information criterion. The remaining error is measurement noise or something the catalogue "
+               "does not hold; see where it is below.";
+  }
+  summary.verdict = verdict.str();
+  summary.time_s = Clock() - start;
+  return summary;
+}
+
+std::string DiagnoseSummary::BriefReport(int max_candidates) const {
+  std::ostringstream out;
+  out << Format("Error: %.4f as given, %.4f after fitting the model's own parameters (baseline)\n\n", error_initial, error_baseline);
+  out << "Candidates (ranked by delta BIC against the baseline; < 0 supports the effect):\n";
+  out << "  #  effect@location                          error    dBIC       helps  fitted\n";
+  for (int i = 0; i < static_cast<int>(candidates.size()) && i < max_candidates; ++i) {
+    const Candidate& c = candidates[i];
+    std::string params;
+    for (const auto& [k, v] : c.effect.parameters) params += (params.empty() ? "" : ", ") + k + "=" + Format("%.3g", v);
+    char line[512];
+    std::snprintf(line, sizeof line, "  %-2d %-40s %7.4f  %9.1f  %-5s  %s\n", i + 1,
+                  (c.effect.name + "@" + c.effect.location).c_str(), c.error_after, c.delta_bic, c.helps ? "yes" : "no",
+                  params.c_str());
+    out << line;
+  }
+  out << "\n" << verdict << "\n";
+  for (int i = 0; i < static_cast<int>(candidates.size()) && i < 3; ++i) {
+    if (!candidates[i].explanation.empty()) out << "  " << i + 1 << ". " << candidates[i].explanation << "\n";
+  }
+  out << "\nWhere the baseline's error is:\n";
+  for (const auto& b : worst_bands) {
+    out << Format("  band %.1f-%.1f Hz", b.band.low_hz, b.band.high_hz) << Format(": error %.4f, %.0f %% of the total\n", b.error, 100 * b.share);
+  }
+  for (const auto& e : worst_elements) {
+    out << "  element " << e.name << Format(": error %.4f, %.0f %% of the total\n", e.error, 100 * e.share);
+  }
+  for (const auto& m : mispaired_modes) {
+    out << Format("  measured mode at %.1f Hz is at %.1f Hz in the model (MAC %.2f)", m.measured_hz, m.model_hz, m.mac)
+        << "; its strain energy is in " << m.dominant_dof << "\n";
+  }
+  for (double f : unpaired_measured_hz) out << Format("  measured mode at %.1f Hz has no model partner\n", f);
+  for (const auto& [f, dof] : unpaired_model) out << Format("  model mode at %.1f Hz (", f) << dof << ") has no measured partner\n";
+  return out.str();
+}
+
+}  // namespace stagefit::diagnose

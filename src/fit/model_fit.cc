@@ -1,0 +1,138 @@
+#include "stagefit/fit/model_fit.h"
+
+#include <fnmatch.h>
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
+
+namespace stagefit::fit {
+namespace {
+
+std::string Number(double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
+  return buffer;
+}
+
+std::string RuleName(const BoundRule& rule) {
+  return (rule.source.empty() ? std::string("bounds") : rule.source + ": bounds") + " '" + rule.pattern + "'";
+}
+
+}  // namespace
+
+bool MatchesPattern(const std::string& name, const std::string& pattern) {
+  return ::fnmatch(pattern.c_str(), name.c_str(), 0) == 0;
+}
+
+ModelFitProblem::ModelFitProblem(const model::ModelSpec& spec, const compare::Comparison& comparison,
+                                 std::vector<model::ParameterInfo> parameters)
+    : spec_(spec), comparison_(&comparison), parameters_(std::move(parameters)) {}
+
+bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals,
+                               Eigen::MatrixXd* jacobian) const {
+  STAGEFIT_ASSERT(p.size() == num_parameters(), "expected " << num_parameters() << " parameters, got " << p.size());
+  for (int i = 0; i < num_parameters(); ++i) model::SetParameter(spec_, parameters_[i], p[i]);
+  try {
+    comparison_->ResidualsAndJacobian(spec_, parameters_, residuals, jacobian);
+  } catch (const NumericalError&) {
+    return false;
+  } catch (const InputError&) {
+    return false;
+  }
+  return true;
+}
+
+std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
+                                              const std::vector<model::ParameterInfo>& parameters,
+                                              const std::vector<BoundRule>& bounds) {
+  std::vector<ParameterSpec> specs;
+  for (const auto& info : parameters) {
+    ParameterSpec s;
+    s.name = info.name;
+    s.unit = SiUnit(info.dimension);
+    s.initial = model::GetParameter(spec, info);
+    s.log_scale = info.positive && s.initial > 0.0;
+    if (s.log_scale) {
+      s.lower = s.initial / kDefaultBoundFactor;
+      s.upper = s.initial * kDefaultBoundFactor;
+    } else if (info.positive) {
+      s.lower = 0.0;
+    }
+    specs.push_back(s);
+  }
+  for (const auto& rule : bounds) {
+    if (rule.factor && !(*rule.factor > 1.0)) {
+      throw InputError(RuleName(rule) + ": factor = " + Number(*rule.factor) + ", expected a number > 1");
+    }
+    if (rule.lower && rule.upper && !(*rule.lower <= *rule.upper)) {
+      throw InputError(RuleName(rule) + ": lower = " + Number(*rule.lower) + " > upper = " + Number(*rule.upper) +
+                       ", expected lower <= upper");
+    }
+    bool any = false;
+    for (size_t i = 0; i < parameters.size(); ++i) {
+      if (!MatchesPattern(parameters[i].name, rule.pattern)) continue;
+      any = true;
+      ParameterSpec& s = specs[i];
+      if (rule.dimension && *rule.dimension != parameters[i].dimension && (rule.lower || rule.upper)) {
+        throw InputError(RuleName(rule) + ": the bounds are in " + DescribeDimension(*rule.dimension) + ", but '" +
+                         s.name + "' is a " + DescribeDimension(parameters[i].dimension));
+      }
+      if (rule.factor) {
+        if (!(s.initial != 0.0)) {
+          throw InputError(RuleName(rule) + ": factor bounds need a non-zero initial value, '" + s.name +
+                           "' is 0; give lower and upper");
+        }
+        const double a = s.initial / *rule.factor, b = s.initial * *rule.factor;
+        s.lower = std::min(a, b);
+        s.upper = std::max(a, b);
+      }
+      if (rule.lower) s.lower = *rule.lower;
+      if (rule.upper) s.upper = *rule.upper;
+      if (s.log_scale && !(s.lower > 0.0)) {
+        throw InputError(RuleName(rule) + ": lower = " + Number(s.lower) + " " + s.unit + " for '" + s.name +
+                         "', expected > 0 (a positive parameter is fitted on a log scale)");
+      }
+      if (!(s.lower <= s.initial && s.initial <= s.upper)) {
+        throw InputError(RuleName(rule) + ": '" + s.name + "' starts at " + Number(s.initial) + " " + s.unit +
+                         ", outside the bounds [" + Number(s.lower) + ", " + Number(s.upper) +
+                         "]; expected bounds around the initial value");
+      }
+    }
+    if (!any) {
+      throw InputError(RuleName(rule) + " matches none of the fitted parameters");
+    }
+  }
+  return specs;
+}
+
+FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& comparison,
+                    const std::vector<model::ParameterInfo>& parameters, const FitOptions& options,
+                    const std::vector<BoundRule>& bounds) {
+  const std::vector<ParameterSpec> specs = MakeParameterSpecs(spec, parameters, bounds);
+  const double error_before = comparison.Error(spec);
+  const ModelFitProblem problem(spec, comparison, parameters);
+  FitSummary summary = Solve(problem, specs, options);
+  for (size_t i = 0; i < parameters.size(); ++i) model::SetParameter(spec, parameters[i], summary.parameters[i].value);
+  summary.initial_error = error_before;
+  summary.initial_cost = 0.5 * error_before * error_before;
+  try {
+    summary.final_error = comparison.Error(spec);
+  } catch (const NumericalError& e) {
+    summary.final_error = std::numeric_limits<double>::quiet_NaN();
+    summary.status = FitStatus::kFailed;
+    summary.message += std::string("; the model at the result cannot be evaluated: ") + e.what();
+  }
+  summary.final_cost = 0.5 * summary.final_error * summary.final_error;
+  std::ostringstream detail;
+  detail << ToString(summary.status) << ", " << parameters.size() << " parameters (";
+  for (size_t i = 0; i < parameters.size(); ++i) detail << (i ? " " : "") << parameters[i].name;
+  detail << "), " << summary.solver << ", error " << Number(error_before) << " -> " << Number(summary.final_error);
+  spec.history.push_back({"fit", summary.final_error, detail.str()});
+  return summary;
+}
+
+}  // namespace stagefit::fit

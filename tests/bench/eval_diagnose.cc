@@ -1,0 +1,63 @@
+// Evaluates diagnose on synthetic measurements with hidden effects (synthetic::MakeHiddenEffectCase):
+// the share of cases whose hidden effect and location rank first, the share whose error after adding
+// the best effect comes within 1.5x of the noise floor (the truth model's own error), and the share of
+// effect-free cases where diagnose wrongly claims an effect.
+//
+// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S]
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include "stagefit/compare/residuals.h"
+#include "stagefit/diagnose/diagnose.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/synthetic/synthetic_measurement.h"
+
+int main(int argc, char** argv) {
+  using namespace stagefit;
+  int cases = 30, effect_free = 10;
+  uint64_t first_seed = 1000;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--cases")) cases = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
+  }
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  int ranked_first = 0, near_floor = 0, false_claims = 0;
+  double total_time = 0;
+  for (int c = 0; c < cases + effect_free; ++c) {
+    const bool with_effect = c < cases;
+    synthetic::HiddenEffectOptions options;
+    options.num_effects = with_effect ? 1 : 0;
+    auto hidden = synthetic::MakeHiddenEffectCase(nominal, first_seed + c, options);
+    diagnose::DiagnoseOptions diagnose_options;
+    auto summary = diagnose::Diagnose(nominal, hidden.measurement, diagnose_options);
+    auto comparison = compare::Comparison::Create(nominal, hidden.measurement, diagnose_options.comparison);
+    const double floor = comparison.Error(hidden.truth);
+    total_time += summary.time_s;
+    const auto& best = summary.candidates.front();
+    if (with_effect) {
+      const auto& truth = hidden.effects.front();
+      const bool first = summary.effect_found && best.effect.name == truth.name && best.effect.location == truth.location;
+      const bool close = best.error_after <= 1.5 * floor;
+      ranked_first += first;
+      near_floor += close;
+      std::printf("case %3d  %-40s -> %-40s first=%d  error %.4f -> %.4f (floor %.4f) %s  %.1f s\n", c,
+                  (truth.name + "@" + truth.location).c_str(), (best.effect.name + "@" + best.effect.location).c_str(),
+                  first, summary.error_baseline, best.error_after, floor, close ? "near-floor" : "", summary.time_s);
+    } else {
+      false_claims += summary.effect_found;
+      std::printf("case %3d  (no effect)  claimed=%d (%s)  error %.4f, floor %.4f  %.1f s\n", c, summary.effect_found,
+                  (best.effect.name + "@" + best.effect.location).c_str(), summary.error_baseline, floor, summary.time_s);
+    }
+    std::fflush(stdout);
+  }
+  std::printf("\nright effect and location first: %d/%d (%.0f %%)\n", ranked_first, cases, 100.0 * ranked_first / std::max(1, cases));
+  std::printf("error within 1.5x of the noise floor: %d/%d (%.0f %%)\n", near_floor, cases, 100.0 * near_floor / std::max(1, cases));
+  std::printf("effect-free cases with a wrongly claimed effect: %d/%d (%.0f %%)\n", false_claims, effect_free,
+              100.0 * false_claims / std::max(1, effect_free));
+  std::printf("mean diagnosis time: %.1f s\n", total_time / std::max(1, cases + effect_free));
+  return 0;
+}

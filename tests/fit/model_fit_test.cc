@@ -1,0 +1,210 @@
+#include "stagefit/fit/model_fit.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "fit_test_util.h"
+#include "stagefit/common/error.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/model/parameters.h"
+
+namespace stagefit::fit {
+namespace {
+
+using testing::LogFrequencies;
+using testing::MakeComplianceMeasurement;
+using testing::ScatterParameters;
+
+// 1 % RMS complex noise per point, as a careful hammer test on a stiff stage reaches.
+constexpr double kNoise = 0.01;
+// The generating scatter of the true stiffnesses around Table 2.1.
+constexpr double kScatter = 1.6;
+
+struct Synthetic {
+  model::ModelSpec truth;
+  measurement::FrfData data;
+};
+
+Synthetic MakeSynthetic(const std::vector<std::string>& scattered, std::uint64_t seed, int num_frequencies,
+                        double low_hz = 10.0, double high_hz = 1000.0) {
+  std::mt19937_64 generator(seed);
+  Synthetic s;
+  s.truth = model::DefaultModelSpec();
+  ScatterParameters(&s.truth, scattered, kScatter, generator);
+  s.data = MakeComplianceMeasurement(s.truth, LogFrequencies(low_hz, high_hz, num_frequencies), kNoise, generator);
+  return s;
+}
+
+TEST(FitModel, RecoversScatteredStiffnessesWithinThreeStd) {
+  // The hexapod's and the spindle's stiffnesses scattered by up to a factor 1.6 (the full 27-stiffness
+  // problem, with its local minima, is measured by tests/bench/bench_fit).
+  const std::vector<std::string> patterns = {"hexapod.k.*", "rz.k.*"};
+  const Synthetic s = MakeSynthetic(patterns, 2024, 300);
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(spec, s.data);
+  const auto params = model::MatchParameters(spec, patterns);
+  const FitSummary summary = FitModel(spec, comparison, params, {});
+  ASSERT_TRUE(summary.converged()) << summary.FullReport();
+  // The noise floor: E||r||^2 = (m - n) / m * noise^2 for residuals normalised by sqrt(sum w^2).
+  const double floor = kNoise * std::sqrt(1.0 - static_cast<double>(params.size()) / summary.num_residuals);
+  EXPECT_LT(summary.final_error, 1.05 * floor) << summary.FullReport();
+  EXPECT_GT(summary.initial_error, 5.0 * floor);
+  int identifiable = 0;
+  for (size_t i = 0; i < params.size(); ++i) {
+    const ParameterEstimate& e = summary.parameters[i];
+    if (!e.identifiable) continue;
+    ++identifiable;
+    const double truth = model::GetParameter(s.truth, params[i]);
+    EXPECT_NEAR(e.value, truth, 3.0 * e.std_dev) << e.name << "\n" << summary.FullReport();
+  }
+  // The compliance at {X} sees at least the hexapod's six stiffnesses.
+  EXPECT_GE(identifiable, 6) << summary.FullReport();
+  for (const auto& e : summary.parameters) {
+    if (e.name.rfind("hexapod.k.", 0) == 0) EXPECT_TRUE(e.identifiable) << e.name << "\n" << summary.FullReport();
+  }
+  ASSERT_FALSE(spec.history.empty());
+  EXPECT_EQ(spec.history.back().step, "fit");
+  EXPECT_EQ(spec.history.back().error, summary.final_error);
+}
+
+TEST(FitModel, ReportedStdAgreesWithScatterOverNoiseRealisations) {
+  // 30 realisations of the noise on one true model: the sample standard deviation of an estimate has a
+  // relative sampling error of 1 / sqrt(2 (30 - 1)) = 13 %, so [0.7, 1.4] is about -2.3 / +3 sigma
+  // (the sampling distribution is skewed upwards). The reported std varies little between realisations.
+  constexpr int kRealisations = 30;
+  const std::vector<std::string> patterns = {"hexapod.k.*"};
+  std::mt19937_64 truth_generator(77);
+  model::ModelSpec truth = model::DefaultModelSpec();
+  ScatterParameters(&truth, patterns, kScatter, truth_generator);
+  const Eigen::VectorXd frequency_hz = LogFrequencies(10.0, 1000.0, 150);
+  const auto params = model::MatchParameters(truth, patterns);
+  const int n = static_cast<int>(params.size());
+  Eigen::MatrixXd estimates(kRealisations, n);
+  Eigen::VectorXd mean_std = Eigen::VectorXd::Zero(n);
+  for (int k = 0; k < kRealisations; ++k) {
+    std::mt19937_64 generator(5000 + k);
+    const auto data = MakeComplianceMeasurement(truth, frequency_hz, kNoise, generator);
+    model::ModelSpec spec = model::DefaultModelSpec();
+    const auto comparison = compare::Comparison::Create(spec, data);
+    const FitSummary summary = FitModel(spec, comparison, params, {});
+    ASSERT_TRUE(summary.converged()) << summary.FullReport();
+    for (int i = 0; i < n; ++i) {
+      estimates(k, i) = summary.parameters[i].value;
+      mean_std[i] += summary.parameters[i].std_dev / kRealisations;
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    const Eigen::VectorXd e = estimates.col(i);
+    const double sample_std = std::sqrt((e.array() - e.mean()).square().sum() / (kRealisations - 1));
+    const double ratio = sample_std / mean_std[i];
+    EXPECT_GT(ratio, 0.7) << params[i].name;
+    EXPECT_LT(ratio, 1.4) << params[i].name;
+    // The estimator is unbiased to well within its standard error sample_std / sqrt(30).
+    EXPECT_NEAR(e.mean(), model::GetParameter(truth, params[i]), 4.0 * sample_std / std::sqrt(kRealisations))
+        << params[i].name;
+  }
+}
+
+TEST(FitModel, StiffnessesSeenOnlyInSeriesAreFlagged) {
+  // Far below the first resonance (~130 Hz) the vertical compliance at {X} is the sum of the series
+  // compliances 1/k_z of the joints: the hexapod's and the granite's vertical stiffnesses enter only
+  // through 1/k_hexapod + 1/k_granite, so the data determine that combination, not each of them.
+  const Synthetic s = MakeSynthetic({"hexapod.k.Dz"}, 31, 200, 1.0, 20.0);
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(spec, s.data);
+  const auto params = model::MatchParameters(spec, {"hexapod.k.Dz", "granite.k.Dz"});
+  ASSERT_EQ(params[0].name, "granite.k.Dz");
+  const FitSummary summary = FitModel(spec, comparison, params, {});
+  EXPECT_NE(summary.status, FitStatus::kFailed);
+  EXPECT_FALSE(summary.parameters[0].identifiable) << summary.FullReport();
+  EXPECT_FALSE(summary.warnings.empty());
+  EXPECT_NE(summary.FullReport().find("granite.k.Dz"), std::string::npos);
+}
+
+TEST(FitModel, TunedFileReproducesTheReportedErrorExactly) {
+  const Synthetic s = MakeSynthetic({"hexapod.k.*", "rz.k.*"}, 9, 200);
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(spec, s.data);
+  const auto params = model::MatchParameters(spec, {"hexapod.k.*", "rz.k.*"});
+  const FitSummary summary = FitModel(spec, comparison, params, {});
+  const model::ModelSpec loaded = model::ParseModelToml(model::WriteModelToml(spec), "tuned.toml");
+  EXPECT_EQ(comparison.Error(loaded), summary.final_error);
+  ASSERT_EQ(loaded.history.size(), spec.history.size());
+  EXPECT_EQ(loaded.history.back().error, summary.final_error);
+  for (size_t i = 0; i < params.size(); ++i) {
+    EXPECT_EQ(model::GetParameter(loaded, params[i]), summary.parameters[i].value);
+  }
+}
+
+TEST(FitModel, NloptDerivativeFreeReachesTheCeresOptimum) {
+  const Synthetic s = MakeSynthetic({"hexapod.k.*"}, 4, 120);
+  const auto params = model::MatchParameters(s.truth, {"hexapod.k.*"});
+  model::ModelSpec ceres_spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(ceres_spec, s.data);
+  const FitSummary reference = FitModel(ceres_spec, comparison, params, {});
+  FitOptions options;
+  options.solver = SolverKind::kNlopt;
+  options.nlopt_algorithm = "LN_BOBYQA";
+  options.nlopt_polish = false;
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const FitSummary summary = FitModel(spec, comparison, params, options);
+  EXPECT_NE(summary.status, FitStatus::kFailed) << summary.FullReport();
+  // BOBYQA stops on a relative change of ||r||^2 of 1e-10; the optimum's error agrees to 1e-3 relative.
+  EXPECT_NEAR(summary.final_error / reference.final_error, 1.0, 1e-3) << summary.FullReport();
+  for (size_t i = 0; i < params.size(); ++i) {
+    EXPECT_NEAR(summary.parameters[i].value, reference.parameters[i].value, 0.1 * reference.parameters[i].std_dev)
+        << params[i].name;
+  }
+}
+
+TEST(FitModel, MultiStartNloptGlobalWithPolishConverges) {
+  const Synthetic s = MakeSynthetic({"hexapod.k.*"}, 6, 80);
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(spec, s.data);
+  const auto params = model::MatchParameters(spec, {"hexapod.k.Dx", "hexapod.k.Dz"});
+  FitOptions options;
+  options.solver = SolverKind::kNlopt;
+  options.nlopt_algorithm = "GN_CRS2_LM";
+  options.nlopt_max_evaluations = 400;
+  options.num_starts = 3;
+  options.seed = 12;
+  const FitSummary summary = FitModel(spec, comparison, params, options, {{"hexapod.k.*", {}, {}, 4.0}});
+  EXPECT_TRUE(summary.converged()) << summary.FullReport();
+  EXPECT_EQ(summary.starts.size(), 3u);
+  for (size_t i = 0; i < params.size(); ++i) {
+    EXPECT_NEAR(summary.parameters[i].value, model::GetParameter(s.truth, params[i]),
+                4.0 * summary.parameters[i].std_dev);
+  }
+}
+
+TEST(MakeParameterSpecs, DefaultBoundsAreAFactorAroundPositiveParameters) {
+  const model::ModelSpec spec = model::DefaultModelSpec();
+  const auto params = model::MatchParameters(spec, {"hexapod.k.Dz", "hexapod.c.Dz"});
+  const auto specs = MakeParameterSpecs(spec, params);
+  ASSERT_EQ(specs.size(), 2u);
+  EXPECT_TRUE(specs[0].log_scale);
+  EXPECT_DOUBLE_EQ(specs[0].lower, 1e8 / kDefaultBoundFactor);
+  EXPECT_DOUBLE_EQ(specs[0].upper, 1e8 * kDefaultBoundFactor);
+  EXPECT_EQ(specs[0].unit, "N/m");
+}
+
+TEST(MakeParameterSpecs, RulesApplyInOrderAndBadRulesThrow) {
+  const model::ModelSpec spec = model::DefaultModelSpec();
+  const auto params = model::MatchParameters(spec, {"hexapod.k.*"});
+  BoundRule wide{"hexapod.k.*", {}, {}, 10.0};
+  BoundRule dz{"hexapod.k.Dz", 5e7, 2e8};
+  const auto specs = MakeParameterSpecs(spec, params, {wide, dz});
+  EXPECT_DOUBLE_EQ(specs[0].lower, 1e6);
+  EXPECT_DOUBLE_EQ(specs[2].lower, 5e7);
+  EXPECT_DOUBLE_EQ(specs[2].upper, 2e8);
+  EXPECT_THROW(MakeParameterSpecs(spec, params, {{"granite.*", {}, {}, 10.0}}), InputError);  // matches none
+  EXPECT_THROW(MakeParameterSpecs(spec, params, {{"hexapod.k.Dz", 2e8, 3e8}}), InputError);  // excludes p0
+  EXPECT_THROW(MakeParameterSpecs(spec, params, {{"hexapod.k.Dz", {}, {}, 0.5}}), InputError);
+  BoundRule wrong_unit{"hexapod.k.Rx", 1e5, 1e7, {}, dim::kTranslationalStiffness};
+  EXPECT_THROW(MakeParameterSpecs(spec, params, {wrong_unit}), InputError);
+}
+
+}  // namespace
+}  // namespace stagefit::fit
