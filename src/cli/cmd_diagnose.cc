@@ -6,6 +6,7 @@
 
 #include "command.h"
 #include "report.h"
+#include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
 #include "stagefit/diagnose/diagnose.h"
 #include "stagefit/measurement/measurement_file.h"
