@@ -447,8 +447,15 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     mean_im(pt.element) += w2 * e(p).imag();
   }
   const double total_num = num.sum();
-  const double total_den = den.sum();
-  result.error = std::sqrt(total_num / total_den);
+  // The scalar itself is ||r||, computed exactly as Residuals() does, so that a compare report and a
+  // fit report of the same model agree to the last bit (the sums above only apportion it).
+  Eigen::VectorXd r(2 * num_points());
+  for (int p = 0; p < num_points(); ++p) {
+    const std::complex<double> we = points_[p].weight * e(p) / weight_norm_;
+    r(p) = we.real();
+    r(num_points() + p) = we.imag();
+  }
+  result.error = r.norm();
 
   for (int k = 0; k < ne; ++k) {
     ElementError el;

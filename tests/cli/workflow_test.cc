@@ -1,0 +1,100 @@
+// The measurement workflow run as a user would: compare, fit, frf, estimate on the shipped example
+// measurement, and bad inputs ending with exit code 2.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli_test_util.h"
+
+namespace stagefit {
+namespace {
+
+using testing::RunStagefit;
+using testing::TempDir;
+
+const std::string kExample = std::string(STAGEFIT_SOURCE_DIR) + "/measurements/microstation-12x10/";
+
+nlohmann::json ReadJson(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  return nlohmann::json::parse(in);
+}
+
+TEST(CompareCommand, ReportsTheErrorOfTheShippedMeasurement) {
+  auto dir = TempDir("compare");
+  auto r = RunStagefit("compare --measurement " + kExample + "frf.mat --report " + (dir / "r.json").string() +
+                       " --out-dir " + (dir / "tables").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto report = ReadJson(dir / "r.json");
+  ASSERT_TRUE(report.contains("error"));
+  EXPECT_GT(report["error"].get<double>(), 0.1);  // the example hides a 6 kg payload
+  EXPECT_FALSE(std::filesystem::is_empty(dir / "tables"));
+}
+
+TEST(CompareCommand, WithThePayloadTheErrorFalls) {
+  auto before = RunStagefit("compare --measurement " + kExample + "frf.mat");
+  auto after = RunStagefit("compare --measurement " + kExample + "frf.mat --with \"payload@hexapod:mass=6,z=0.06\"");
+  ASSERT_EQ(after.exit_code, 0) << after.output;
+  auto error_of = [](const std::string& out) { return std::stod(out.substr(out.find("error = ") + 8)); };
+  EXPECT_LT(error_of(after.output), 0.5 * error_of(before.output));
+}
+
+TEST(CompareCommand, BadMeasurementFilesExitTwoNamingTheFile) {
+  auto dir = TempDir("compare_bad");
+  EXPECT_EQ(RunStagefit("compare --measurement /nonexistent/m.mat").exit_code, 2);
+  {
+    std::ifstream in(kExample + "frf.mat", std::ios::binary);
+    std::string bytes(2000, '\0');
+    in.read(bytes.data(), bytes.size());
+    std::ofstream(dir / "truncated.mat", std::ios::binary) << bytes;
+  }
+  auto r = RunStagefit("compare --measurement " + (dir / "truncated.mat").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("truncated.mat"), std::string::npos) << r.output;
+  std::ofstream(dir / "bad.csv") << "freq_hz,output,input,re,im\n10,a,b,1,0\n5,a,b,1,0\n";
+  r = RunStagefit("compare --space raw --measurement " + (dir / "bad.csv").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+TEST(FitCommand, TunedFileReproducesTheReportedError) {
+  auto dir = TempDir("fit");
+  auto r = RunStagefit("fit --measurement " + kExample + "frf.mat --params \"hexapod.k.*\" --out " +
+                       (dir / "tuned.toml").string() + " --report " + (dir / "fit.json").string());
+  ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.output;
+  auto report = ReadJson(dir / "fit.json");
+  for (const char* key : {"error", "error_before", "parameters", "status"}) EXPECT_TRUE(report.contains(key)) << key;
+  EXPECT_LT(report["error"].get<double>(), report["error_before"].get<double>());
+  auto again = RunStagefit("compare --model " + (dir / "tuned.toml").string() + " --measurement " + kExample +
+                           "frf.mat --report " + (dir / "again.json").string());
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_EQ(ReadJson(dir / "again.json")["error"].get<double>(), report["error"].get<double>());
+}
+
+TEST(FitCommand, RefusesToWriteOverItsInput) {
+  auto r = RunStagefit("fit --measurement " + kExample + "frf.mat --out " + kExample + "frf.mat");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+TEST(FrfCommand, WritesTheModelAtTheMeasurementsFrequencies) {
+  auto dir = TempDir("frf");
+  auto r = RunStagefit("frf --measurement " + kExample + "frf.mat --out " + (dir / "model.csv").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir / "model.csv");
+  int rows = 0;
+  for (std::string line; std::getline(in, line);) rows += !line.empty() && line[0] != '#';
+  EXPECT_EQ(rows, 1 + 300 * 12 * 10);  // header + one row per frequency, output and input
+}
+
+TEST(EstimateCommand, TurnsTheShippedRawDataIntoFrfs) {
+  auto dir = TempDir("estimate");
+  auto r = RunStagefit("estimate " + kExample + "raw.mat --exp-tau 0.25 --out " + (dir / "est.mat").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "est.mat"));
+  auto bad = RunStagefit("estimate " + kExample + "frf.mat --out " + (dir / "x.mat").string());
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("frf.mat"), std::string::npos) << bad.output;
+}
+
+}  // namespace
+}  // namespace stagefit
