@@ -76,7 +76,11 @@ sd::PsdTable ReadPsdTable(const std::string& path) {
 void WriteOutputs(const sim::SimulationSummary& s, const SimulateFlags& f, const std::vector<std::string>& inputs,
                   nlohmann::json& report) {
   const std::filesystem::path dir(f.out_dir);
-  if (!std::filesystem::is_directory(dir)) throw InputError("--out-dir " + f.out_dir + ": not a folder");
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!std::filesystem::is_directory(dir)) {
+    throw InputError("--out-dir " + f.out_dir + ": not a folder and cannot be created (" + ec.message() + ")");
+  }
   std::vector<std::filesystem::path> input_paths(inputs.begin(), inputs.end());
 
   sd::CsvTable series;
