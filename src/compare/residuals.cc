@@ -1,5 +1,7 @@
 #include "stagefit/compare/residuals.h"
 
+#include "stagefit/kinematics/rigid_transform.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -323,7 +325,30 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
 }
 
 model::SecondOrderSystem Comparison::BuildModelSystem(const model::AssembledModel& model) const {
-  return model::BuildSystem(model, model_inputs_, model_outputs_);
+  if (space_ != ComparisonSpace::kRaw || model.spec().geometry_corrections.empty()) {
+    return model::BuildSystem(model, model_inputs_, model_outputs_);
+  }
+  // Raw space: the model's sensors and impacts sit where the channels really are, i.e. at the declared
+  // geometry corrected by the model's [[geometry_correction]] entries (the sensor-geometry effect).
+  std::vector<model::InputSpec> inputs = model_inputs_;
+  std::vector<model::OutputSpec> outputs = model_outputs_;
+  for (const auto& g : model.spec().geometry_corrections) {
+    const Eigen::Matrix3d R = kinematics::RotationFromEuler({g.rotation_rad(0), g.rotation_rad(1), g.rotation_rad(2)});
+    if (g.is_impact) {
+      for (auto& in : inputs) {
+        if (in.name != g.channel) continue;
+        in.position_W += g.offset_W;
+        in.direction_W = R * in.direction_W;
+      }
+    } else {
+      for (auto& out : outputs) {
+        if (out.name != g.channel) continue;
+        out.position_W += g.offset_W;
+        out.direction_W = R * out.direction_W;
+      }
+    }
+  }
+  return model::BuildSystem(model, inputs, outputs);
 }
 
 std::vector<Eigen::MatrixXcd> Comparison::EvaluateModel(const model::ModelSpec& spec) const {

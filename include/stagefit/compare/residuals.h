@@ -13,7 +13,10 @@
 //    quantity the projection estimates.
 //  - kRaw: the raw channels. Model outputs are sensors (body, position_W, direction_W) and inputs
 //    forces built from the measurement's ChannelGeometry, so a measurement with its own geometry
-//    needs no [[sensor]] or [[excitation]] entries in the model.
+//    needs no [[sensor]] or [[excitation]] entries in the model. The model's [[geometry_correction]]
+//    entries (the sensor-geometry effect) move and turn the model's copies of those channels, so a
+//    corrected geometry is fitted against the declared one. (In compliance space the projection uses
+//    the declared geometry: a sensor-geometry effect is not seen there.)
 // Both sides are in the comparison quantity (the measurement's unless overridden). The ratio
 // H_model / H_meas, hence the error, does not depend on the quantity: s^p cancels.
 //
