@@ -4,7 +4,7 @@
 # loop's second step (fit with the best effect, diagnose again). Outputs go to ./out/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh -DSTAGEFIT_BUILD_BENCHMARKS=ON
 mkdir -p out
 m=measurements/microstation-12x10/frf.mat
 s=./build/stagefit
