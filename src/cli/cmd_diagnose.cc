@@ -64,10 +64,12 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     std::vector<std::string> inputs = {o->common.model_path, o->measurement};
     if (!o->out.empty() && summary.effect_found) {
       CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
-      model::ModelSpec with = summary.baseline;
-      model::ApplyEffect(with, summary.candidates[0].effect);
+      model::ModelSpec with = diagnose::ApplyCandidate(summary, summary.candidates[0]);
+      with.history.push_back({"diagnose --with " + summary.candidates[0].with, summary.candidates[0].error_after,
+                              summary.candidates[0].explanation});
       model::WriteModelFile(o->out, with);
-      std::printf("wrote %s (baseline with %s; refit it with stagefit fit)\n", o->out.c_str(), summary.candidates[0].with.c_str());
+      std::printf("wrote %s (the fitted model with %s; refine it with stagefit fit)\n", o->out.c_str(),
+                  summary.candidates[0].with.c_str());
     }
     if (!o->common.report_path.empty()) {
       nlohmann::json candidates = nlohmann::json::array();

@@ -362,14 +362,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   summary.candidates = unique;
   for (size_t i = 0; i < summary.candidates.size() && i < 5; ++i) {
     Candidate& c = summary.candidates[i];
-    model::ModelSpec with = summary.baseline;
     try {
-      model::ApplyEffect(with, c.effect);
-      for (const auto& [name, value] : c.model_parameters) {
-        for (const auto& p : model_params) {
-          if (p.name == name) model::SetParameter(with, p, value);
-        }
-      }
+      const model::ModelSpec with = ApplyCandidate(summary, c);
       c.explanation = Explain(c, summary.baseline) + ModeSentence(comparison, summary.baseline, with);
     } catch (const std::exception&) {
       c.explanation = Explain(c, summary.baseline);
@@ -416,6 +410,16 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   summary.verdict = verdict.str();
   summary.time_s = Clock() - start;
   return summary;
+}
+
+model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate& candidate) {
+  model::ModelSpec with = summary.baseline;
+  model::ApplyEffect(with, candidate.effect);
+  for (const auto& p : model::ListParameters(summary.baseline)) {
+    auto it = candidate.model_parameters.find(p.name);
+    if (it != candidate.model_parameters.end()) model::SetParameter(with, p, it->second);
+  }
+  return with;
 }
 
 std::string DiagnoseSummary::BriefReport(int max_candidates) const {

@@ -92,6 +92,9 @@ struct DiagnoseSummary {
 DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfData& measurement,
                          const DiagnoseOptions& options = {});
 
+/// The baseline of `summary` with `candidate`'s effect applied and the model parameters fitted with it.
+model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate& candidate);
+
 /// Fits `effect` (parameters as starting values) together with `params` of `base`, returns the fit
 /// summary and the fitted effect; `spec_out` (optional) receives the model with the effect applied.
 struct EffectFit {
