@@ -158,7 +158,7 @@ std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const
   return model::MatchParameters(spec, patterns);
 }
 
-std::string Explain(const Candidate& c, const model::ModelSpec& baseline) {
+std::string Explain(const Candidate& c) {
   const auto& p = c.effect.parameters;
   auto get = [&](const char* k) { return p.count(k) ? p.at(k) : 0.0; };
   const std::string& where = c.effect.location;
@@ -195,7 +195,6 @@ std::string Explain(const Candidate& c, const model::ModelSpec& baseline) {
   }
   if (n == "delay") return Format("the acquisition chain delays the signals by %.3f ms", 1e3 * get("tau"));
   if (n == "gyroscopic") return Format("the subtree above joint ") + where + Format(" spins at %.1f rpm", get("spin") * 60 / (2 * M_PI));
-  (void)baseline;
   return c.with;
 }
 
@@ -364,9 +363,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     Candidate& c = summary.candidates[i];
     try {
       const model::ModelSpec with = ApplyCandidate(summary, c);
-      c.explanation = Explain(c, summary.baseline) + ModeSentence(comparison, summary.baseline, with);
+      c.explanation = Explain(c) + ModeSentence(comparison, summary.baseline, with);
     } catch (const std::exception&) {
-      c.explanation = Explain(c, summary.baseline);
+      c.explanation = Explain(c);
     }
   }
   summary.effect_found = !summary.candidates.empty() && summary.candidates[0].helps;
