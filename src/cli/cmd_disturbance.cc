@@ -17,6 +17,7 @@
 #include "stagefit/disturbance/force_psd.h"
 #include "stagefit/disturbance/geophone.h"
 #include "stagefit/disturbance/record_io.h"
+#include "stagefit/disturbance/sensitivity.h"
 #include "stagefit/disturbance/spectral_density.h"
 #include "stagefit/disturbance/spindle_error.h"
 #include "stagefit/disturbance/straightness.h"
@@ -407,6 +408,37 @@ void RunForce(const ForceFlags& f) {
   }
 }
 
+struct SensitivityFlags {
+  CommonOptions common;
+  std::string source = "ty.F.Dz", output = "X_rel.Dz", at, out;
+  double fmin = 1, fmax = 1000;
+  int points = 500;
+};
+
+void RunSensitivity(const SensitivityFlags& f) {
+  const model::ModelSpec spec = LoadModelFromOptions(f.common);
+  Eigen::VectorXd frequency;
+  if (!f.at.empty()) {
+    frequency = sd::ReadCsvTable(f.at).Column("frequency_hz");
+  } else {
+    if (!(f.fmin > 0 && f.fmax > f.fmin && f.points >= 2)) throw UsageError("need 0 < --fmin < --fmax and --points >= 2");
+    frequency.resize(f.points);
+    for (int k = 0; k < f.points; ++k) frequency(k) = f.fmin * std::pow(f.fmax / f.fmin, double(k) / (f.points - 1));
+  }
+  if (frequency.size() == 0 || frequency.minCoeff() <= 0) {
+    throw InputError((f.at.empty() ? std::string("--fmin") : f.at) + ": frequencies must be > 0 Hz");
+  }
+  CheckNotAnInput(f.out, {f.at, f.common.model_path});
+  const Eigen::VectorXcd h = sd::CalcModelSensitivity(spec, f.source, f.output, frequency);
+  sd::CsvTable out = SpectrumTable("frequency_hz", frequency, {"re", "im", "abs"}, {"", "", ""},
+                                   {h.real(), h.imag(), h.cwiseAbs()});
+  out.comments.push_back("stagefit disturbance sensitivity: receptance from " + f.source + " to " + f.output +
+                         " (m/N, m/m for ground motion, rad for rotations)");
+  sd::WriteCsvTable(f.out, out);
+  std::printf("wrote %s: %s -> %s at %d frequencies, |H| from %.3g to %.3g\n", f.out.c_str(), f.source.c_str(),
+              f.output.c_str(), static_cast<int>(frequency.size()), h.cwiseAbs().minCoeff(), h.cwiseAbs().maxCoeff());
+}
+
 }  // namespace
 
 void RegisterDisturbanceCommand(CLI::App& app) {
@@ -475,6 +507,22 @@ void RegisterDisturbanceCommand(CLI::App& app) {
   force->add_option("--out", fo->out, "force PSD CSV to write")->required();
   force->add_option("--report", fo->report, "write a JSON report to this file");
   force->callback([fo] { RunForce(*fo); });
+
+  auto* sensitivity = command->add_subcommand(
+      "sensitivity", "the model's sensitivity from a disturbance source to {X} relative to the granite (CSV for `force`)");
+  auto se = std::make_shared<SensitivityFlags>();
+  AddCommonOptions(*sensitivity, se->common);
+  AddWithOption(*sensitivity, se->common);
+  sensitivity->add_option("--source", se->source,
+                          "ground.Dx|Dy|Dz, ty.F.Dz|Dx (force inside the translation stage), rz.F.Dz|Dx|Dy (spindle)")
+      ->capture_default_str();
+  sensitivity->add_option("--output", se->output, "X_rel.Dx ... X_rel.Rz")->capture_default_str();
+  sensitivity->add_option("--at", se->at, "compute at the frequency_hz of this CSV (e.g. the motion PSD)");
+  sensitivity->add_option("--fmin", se->fmin, "lowest frequency, Hz (without --at)")->capture_default_str();
+  sensitivity->add_option("--fmax", se->fmax, "highest frequency, Hz")->capture_default_str();
+  sensitivity->add_option("--points", se->points, "log-spaced frequencies")->capture_default_str();
+  sensitivity->add_option("--out", se->out, "CSV to write: frequency_hz,re,im,abs")->required();
+  sensitivity->callback([se] { RunSensitivity(*se); });
 }
 
 }  // namespace stagefit::cli
