@@ -154,24 +154,12 @@ void RegisterFrfCommand(CLI::App& app) {
       std::vector<model::OutputSpec> outputs;
       for (const auto& channel : data.outputs) {
         Geometry g = ChannelGeometry(channel, spec.sensors, o->measurement, "sensor");
-        model::OutputSpec out;
-        out.kind = model::OutputSpec::Kind::kSensor;
-        out.name = channel.name;
-        out.body = g.body;
-        out.position_W = g.position_W;
-        out.direction_W = g.direction_W;
-        outputs.push_back(out);
+        outputs.push_back(model::SensorOutput(channel.name, g.body, g.position_W, g.direction_W));
         output_geometry.push_back(g);
       }
       for (const auto& channel : data.inputs) {
         Geometry g = ChannelGeometry(channel, spec.excitations, o->measurement, "impact");
-        model::InputSpec in;
-        in.kind = model::InputSpec::Kind::kForce;
-        in.name = channel.name;
-        in.body = g.body;
-        in.position_W = g.position_W;
-        in.direction_W = g.direction_W;
-        inputs.push_back(in);
+        inputs.push_back(model::ForceInput(channel.name, g.body, g.position_W, g.direction_W));
         input_geometry.push_back(g);
       }
       system = model::BuildSystem(assembled, inputs, outputs);

@@ -214,23 +214,11 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     }
     for (const auto& ch : measurement.outputs) {
       c.output_names_.push_back(ch.name);
-      model::OutputSpec out;
-      out.kind = model::OutputSpec::Kind::kSensor;
-      out.name = ch.name;
-      out.body = ch.body;
-      out.position_W = ch.position_W;
-      out.direction_W = ch.direction_W;
-      c.model_outputs_.push_back(out);
+      c.model_outputs_.push_back(model::SensorOutput(ch.name, ch.body, ch.position_W, ch.direction_W));
     }
     for (const auto& ch : measurement.inputs) {
       c.input_names_.push_back(ch.name);
-      model::InputSpec in;
-      in.kind = model::InputSpec::Kind::kForce;
-      in.name = ch.name;
-      in.body = ch.body;
-      in.position_W = ch.position_W;
-      in.direction_W = ch.direction_W;
-      c.model_inputs_.push_back(in);
+      c.model_inputs_.push_back(model::ForceInput(ch.name, ch.body, ch.position_W, ch.direction_W));
     }
     for (int k = 0; k < nf; ++k) {
       c.measured_[k] = measurement.frf[rows[k]];

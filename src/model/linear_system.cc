@@ -154,6 +154,28 @@ SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<Inp
   return sys;
 }
 
+OutputSpec SensorOutput(const std::string& name, const std::string& body, const Eigen::Vector3d& position_W,
+                        const Eigen::Vector3d& direction_W) {
+  OutputSpec out;
+  out.kind = OutputSpec::Kind::kSensor;
+  out.name = name;
+  out.body = body;
+  out.position_W = position_W;
+  out.direction_W = direction_W;
+  return out;
+}
+
+InputSpec ForceInput(const std::string& name, const std::string& body, const Eigen::Vector3d& position_W,
+                     const Eigen::Vector3d& direction_W) {
+  InputSpec in;
+  in.kind = InputSpec::Kind::kForce;
+  in.name = name;
+  in.body = body;
+  in.position_W = position_W;
+  in.direction_W = direction_W;
+  return in;
+}
+
 std::vector<InputSpec> FrameWrenchInputs(const ModelSpec& spec, const std::string& frame) {
   const FrameSpec& f = RequireFrame(spec, frame, "compliance inputs");
   static const char* kNames[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
@@ -186,29 +208,13 @@ std::vector<OutputSpec> FrameMotionOutputs(const ModelSpec& spec, const std::str
 
 std::vector<OutputSpec> SensorOutputs(const ModelSpec& spec) {
   std::vector<OutputSpec> outputs;
-  for (const auto& s : spec.sensors) {
-    OutputSpec out;
-    out.kind = OutputSpec::Kind::kSensor;
-    out.name = s.name;
-    out.body = s.body;
-    out.position_W = s.position_W;
-    out.direction_W = s.direction_W;
-    outputs.push_back(out);
-  }
+  for (const auto& s : spec.sensors) outputs.push_back(SensorOutput(s.name, s.body, s.position_W, s.direction_W));
   return outputs;
 }
 
 std::vector<InputSpec> ExcitationInputs(const ModelSpec& spec) {
   std::vector<InputSpec> inputs;
-  for (const auto& e : spec.excitations) {
-    InputSpec in;
-    in.kind = InputSpec::Kind::kForce;
-    in.name = e.name;
-    in.body = e.body;
-    in.position_W = e.position_W;
-    in.direction_W = e.direction_W;
-    inputs.push_back(in);
-  }
+  for (const auto& e : spec.excitations) inputs.push_back(ForceInput(e.name, e.body, e.position_W, e.direction_W));
   return inputs;
 }
 

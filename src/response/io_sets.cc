@@ -30,13 +30,8 @@ std::vector<model::InputSpec> StageHammerInputs(const model::ModelSpec& spec) {
   }
   std::vector<model::InputSpec> inputs;
   for (int axis = 0; axis < 3; ++axis) {
-    model::InputSpec in;
-    in.kind = model::InputSpec::Kind::kForce;
-    in.name = std::string(kStageHammerBody) + ".hammer.F" + "xyz"[axis];
-    in.body = kStageHammerBody;
-    in.position_W = spec.bodies[b].com_W + kStageHammerOffset;
-    in.direction_W = Eigen::Vector3d::Unit(axis);
-    inputs.push_back(in);
+    inputs.push_back(model::ForceInput(std::string(kStageHammerBody) + ".hammer.F" + "xyz"[axis], kStageHammerBody,
+                                       spec.bodies[b].com_W + kStageHammerOffset, Eigen::Vector3d::Unit(axis)));
   }
   return inputs;
 }

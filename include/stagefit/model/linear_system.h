@@ -73,6 +73,13 @@ struct SecondOrderSystem {
 SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<InputSpec>& inputs,
                               const std::vector<OutputSpec>& outputs);
 
+/// A translation sensor: `body`'s point `position_W` read along `direction_W` (OutputSpec::kSensor).
+OutputSpec SensorOutput(const std::string& name, const std::string& body, const Eigen::Vector3d& position_W,
+                        const Eigen::Vector3d& direction_W);
+/// A force at `body`'s point `position_W` along `direction_W` (InputSpec::kForce).
+InputSpec ForceInput(const std::string& name, const std::string& body, const Eigen::Vector3d& position_W,
+                     const Eigen::Vector3d& direction_W);
+
 // Common input/output sets.
 
 /// Forces Fx Fy Fz and torques Mx My Mz at the origin of `frame`, along its axes ("<frame>.Fx" ...).
