@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
-# Renders PSD CSV files written by `stagefit disturbance psd` (or the target tables in
-# measurements/disturbance/) as log-log amplitude spectral densities, sqrt(PSD), one PNG per file,
-# one curve per column. Needs gnuplot (gnuplot-nox is enough).
+# Renders the CSV files of `stagefit disturbance` as log-log plots, one PNG per file:
+#   - PSD tables (`disturbance psd`, the target tables in measurements/disturbance/): amplitude
+#     spectral densities sqrt(PSD), one curve per column;
+#   - sensitivities (`disturbance sensitivity`, columns re,im,abs): |H| in its unit;
+#   - force (source) PSDs (`disturbance force`, with a `reliable` column): sqrt(PSD), the bins
+#     flagged unreliable (sensitivity too small) drawn as grey points.
+# Needs gnuplot (gnuplot-nox is enough).
 #
-#   scripts/plot_disturbance.sh PSD.csv [PSD2.csv ...]    -> PSD.png, PSD2.png beside the inputs
+#   scripts/plot_disturbance.sh PSD.csv [S.csv F.csv ...] -> PSD.png, S.png, F.png beside the inputs
 #   OUT_DIR=plots scripts/plot_disturbance.sh PSD.csv     -> plots/PSD.png
 set -euo pipefail
 
@@ -30,10 +34,30 @@ for csv in "$@"; do
   mkdir -p "$out_dir"
   png="$out_dir/$base.png"
   plots=""
+  ylabel="Amplitude spectral density"
+  unit_of() {
+    awk -v n="$1" '$1 == "#" && $2 == "unit" && $3 == n { $1 = $2 = $3 = ""; sub(/^ +/, ""); print; exit }' "$csv"
+  }
+  reliable_column=0
   for ((c = 1; c < ${#columns[@]}; ++c)); do
+    [[ "${columns[$c]}" == reliable ]] && reliable_column=$((c + 1))
+  done
+  sensitivity=0
+  [[ " ${columns[*]} " == *" abs "* ]] && sensitivity=1
+  if ((sensitivity)); then
+    # A sensitivity: plot its magnitude.
+    for ((c = 1; c < ${#columns[@]}; ++c)); do
+      [[ "${columns[$c]}" == abs ]] || continue
+      unit=$(unit_of abs)
+      ylabel="|H| [${unit:-model units}]"
+      plots="'$csv' using 1:((\$$((c + 1)) > 0) ? \$$((c + 1)) : 1/0) with lines lw 1.5 title '|H|'"
+    done
+  fi
+  for ((c = 1; c < ${#columns[@]}; ++c)); do
+    ((sensitivity)) && break
     name=${columns[$c]}
     [[ "$name" == reliable ]] && continue
-    unit=$(awk -v n="$name" '$1 == "#" && $2 == "unit" && $3 == n { $1 = $2 = $3 = ""; sub(/^ +/, ""); print; exit }' "$csv")
+    unit=$(unit_of "$name")
     if [[ "$unit" =~ ^([^/^]+)\^2/(.+)$ ]]; then
       asd_unit="${BASH_REMATCH[1]}/sqrt(${BASH_REMATCH[2]})"
     elif [[ -n "$unit" ]]; then
@@ -41,7 +65,14 @@ for csv in "$@"; do
     else
       asd_unit="U/sqrt(Hz)"
     fi
-    plots+="${plots:+, }'$csv' using 1:((\$$((c + 1)) > 0 && \$1 > 0) ? sqrt(\$$((c + 1))) : 1/0) with lines lw 1.5 title '$name [$asd_unit]'"
+    v="\$$((c + 1))"
+    if ((reliable_column > 0)); then
+      r="\$$reliable_column"
+      plots+="${plots:+, }'$csv' using 1:(($v > 0 && $r > 0) ? sqrt($v) : 1/0) with lines lw 1.5 title '$name [$asd_unit]'"
+      plots+=", '$csv' using 1:(($v > 0 && $r == 0) ? sqrt($v) : 1/0) with points pt 7 ps 0.4 lc rgb 'grey60' title 'unreliable: sensitivity too small'"
+    else
+      plots+="${plots:+, }'$csv' using 1:(($v > 0 && \$1 > 0) ? sqrt($v) : 1/0) with lines lw 1.5 title '$name [$asd_unit]'"
+    fi
   done
   gnuplot <<GNUPLOT
 set terminal pngcairo size 900,600 noenhanced
@@ -53,7 +84,7 @@ set logscale xy
 set grid xtics ytics mxtics mytics
 set format y '%.0e'
 set xlabel '$xlabel'
-set ylabel 'Amplitude spectral density'
+set ylabel '$ylabel'
 set title '$base'
 set key bottom left
 plot $plots

@@ -1,6 +1,7 @@
 // `stagefit disturbance`: PSDs of disturbance records, synthesised time signals with a given PSD,
 // force PSDs from a motion PSD and a sensitivity. Record layouts: docs/disturbances.md.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -281,18 +282,35 @@ void RunSynth(const SynthFlags& f) {
       geophone.amplifier_gain = f.gain;
       sd::ValidateGeophone(geophone, "--gain");
     }
-    const std::vector<std::string> names = DataColumns(table, "frequency_hz");
+    // A force PSD from `disturbance force` carries a `reliable` column: it is not a signal, and the
+    // bins it flags (sensitivity too small) are left out of the synthesis rather than amplified noise.
+    std::vector<std::string> names = DataColumns(table, "frequency_hz");
+    const int reliable_column = table.FindColumn("reliable");
+    if (reliable_column >= 0) {
+      names.erase(std::find(names.begin(), names.end(), "reliable"));
+      if (names.empty()) throw InputError(table.source + ": no PSD column besides 'reliable'");
+    }
     out.column_names.push_back("time_s");
     out.units.push_back("s");
     out.values.resize(n, static_cast<Eigen::Index>(names.size() + 1));
     out.values.col(0) = Eigen::VectorXd::LinSpaced(n, 0.0, n - 1.0) / options.sample_rate_hz;
     for (size_t c = 0; c < names.size(); ++c) {
-      const sd::PsdTable target = PsdColumn(table, "frequency_hz", names[c]);
+      sd::PsdTable target = PsdColumn(table, "frequency_hz", names[c]);
+      if (reliable_column >= 0) {
+        const Eigen::VectorXd reliable = table.values.col(reliable_column);
+        const Eigen::Index dropped = (reliable.array() == 0.0).count();
+        target.psd = (reliable.array() == 0.0).select(0.0, target.psd);
+        std::printf("%s: %ld bins flagged unreliable set to zero\n", names[c].c_str(), static_cast<long>(dropped));
+      }
       std::function<double(double)> gain2;
       if (ground) gain2 = [&](double fr) { return sd::CalcGeophoneDisplacementGain2(geophone, fr); };
       out.values.col(static_cast<Eigen::Index>(c + 1)) = sd::SynthesiseSignal(target, options, rng, gain2);
       out.column_names.push_back(ground ? names[c] + "_voltage" : names[c]);
-      out.units.push_back(ground ? "V" : "");
+      // The signal's unit from its PSD's "X^2/Hz".
+      const std::string psd_unit = table.units[table.FindColumn(names[c])];
+      const size_t squared = psd_unit.find("^2/Hz");
+      const bool plain = squared != std::string::npos && squared + 5 == psd_unit.size();
+      out.units.push_back(ground ? "V" : plain ? psd_unit.substr(0, squared) : "");
     }
     if (ground) {
       out.comments.push_back("geophone " + geophone.name + " voltage, amplifier gain " + FormatNumber(f.gain) +
@@ -385,6 +403,26 @@ void RunForce(const ForceFlags& f) {
     throw InputError(h_table.source + ": frequency_hz differs from the frequencies of " + f.psd +
                      ", expected the sensitivity at the PSD's bins");
   }
+  // Units: the sensitivity is "A/B" (motion per source unit); the motion PSD must be in A^2/Hz and the
+  // source PSD comes out in B^2/Hz. Hand-made sensitivity files without units are taken as m/N.
+  const int abs_column = h_table.FindColumn("abs");
+  std::string h_unit = abs_column >= 0 ? h_table.units[abs_column] : "";
+  if (h_unit.empty()) {
+    h_unit = "m/N";
+    std::printf("note: %s gives no unit for 'abs'; taking it as m/N\n", f.sensitivity.c_str());
+  }
+  const size_t slash = h_unit.find('/');
+  if (slash == std::string::npos || slash == 0 || slash + 1 == h_unit.size()) {
+    throw InputError(h_table.source + ": unit of 'abs' is '" + h_unit +
+                     "', expected motion per source unit such as m/N, rad/N or m/m");
+  }
+  const std::string motion_unit = h_unit.substr(0, slash), source_unit = h_unit.substr(slash + 1);
+  const std::string motion_psd_unit = motion_table.units[motion_table.FindColumn(column)];
+  if (!motion_psd_unit.empty() && motion_psd_unit != motion_unit + "^2/Hz") {
+    throw InputError(motion_table.source + ": column '" + column + "' is in " + motion_psd_unit + ", but " +
+                     f.sensitivity + " is in " + h_unit + "; expected a motion PSD in " + motion_unit +
+                     "^2/Hz");
+  }
   const Eigen::VectorXcd h = h_table.Column("re").cast<std::complex<double>>() +
                              std::complex<double>(0.0, 1.0) * h_table.Column("im").cast<std::complex<double>>();
   sd::ForcePsdOptions options;
@@ -393,8 +431,9 @@ void RunForce(const ForceFlags& f) {
   std::printf("%s\n", s.BriefReport().c_str());
   Eigen::VectorXd reliable(s.reliable.size());
   for (size_t k = 0; k < s.reliable.size(); ++k) reliable[k] = s.reliable[k] ? 1.0 : 0.0;
-  sd::CsvTable out = SpectrumTable("frequency_hz", s.force_psd.frequency_hz, {column + "_force", "reliable"},
-                                   {"N^2/Hz", ""}, {s.force_psd.psd, reliable});
+  const std::string name = column + (source_unit == "N" ? "_force" : "_source");
+  sd::CsvTable out = SpectrumTable("frequency_hz", s.force_psd.frequency_hz, {name, "reliable"},
+                                   {source_unit + "^2/Hz", ""}, {s.force_psd.psd, reliable});
   out.comments.push_back("stagefit disturbance force: S_F = S_x / |H|^2 from " + f.psd + " and " + f.sensitivity);
   for (Eigen::Index k = 0; k < out.values.rows(); ++k) {
     if (std::isnan(out.values(k, 1))) out.values(k, 1) = 0.0;
@@ -425,15 +464,18 @@ void RunSensitivity(const SensitivityFlags& f) {
     frequency.resize(f.points);
     for (int k = 0; k < f.points; ++k) frequency(k) = f.fmin * std::pow(f.fmax / f.fmin, double(k) / (f.points - 1));
   }
-  if (frequency.size() == 0 || frequency.minCoeff() <= 0) {
-    throw InputError((f.at.empty() ? std::string("--fmin") : f.at) + ": frequencies must be > 0 Hz");
+  if (frequency.size() == 0 || frequency.minCoeff() < 0) {
+    throw InputError((f.at.empty() ? std::string("--fmin") : f.at) + ": frequencies must be >= 0 Hz");
   }
   CheckNotAnInput(f.out, {f.at, f.common.model_path});
   const Eigen::VectorXcd h = sd::CalcModelSensitivity(spec, f.source, f.output, frequency);
-  sd::CsvTable out = SpectrumTable("frequency_hz", frequency, {"re", "im", "abs"}, {"", "", ""},
+  const bool rotation = f.output.size() > 2 && f.output.compare(f.output.size() - 2, 1, "R") == 0;
+  const bool ground = f.source.rfind("ground.", 0) == 0;
+  const std::string unit = std::string(rotation ? "rad" : "m") + (ground ? "/m" : "/N");
+  sd::CsvTable out = SpectrumTable("frequency_hz", frequency, {"re", "im", "abs"}, {unit, unit, unit},
                                    {h.real(), h.imag(), h.cwiseAbs()});
   out.comments.push_back("stagefit disturbance sensitivity: receptance from " + f.source + " to " + f.output +
-                         " (m/N, m/m for ground motion, rad for rotations)");
+                         " in " + unit);
   sd::WriteCsvTable(f.out, out);
   std::printf("wrote %s: %s -> %s at %d frequencies, |H| from %.3g to %.3g\n", f.out.c_str(), f.source.c_str(),
               f.output.c_str(), static_cast<int>(frequency.size()), h.cwiseAbs().minCoeff(), h.cwiseAbs().maxCoeff());

@@ -96,28 +96,5 @@ TEST(EstimateCommand, TurnsTheShippedRawDataIntoFrfs) {
   EXPECT_NE(bad.output.find("frf.mat"), std::string::npos) << bad.output;
 }
 
-TEST(DisturbanceCommand, SensitivityFeedsTheForcePsd) {
-  auto dir = TempDir("disturbance");
-  auto r = RunStagefit("disturbance sensitivity --source ty.F.Dz --output X_rel.Dz --fmin 1 --fmax 100 --points 50 --out " +
-                       (dir / "s.csv").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::ofstream(dir / "psd.csv") << "frequency_hz,motion\n";
-  {
-    std::ifstream in(dir / "s.csv");
-    std::ofstream psd(dir / "psd.csv", std::ios::app);
-    for (std::string line; std::getline(in, line);) {
-      if (line.empty() || line[0] == '#' || line[0] == 'f') continue;
-      psd << line.substr(0, line.find(',')) << ",1e-18\n";
-    }
-  }
-  r = RunStagefit("disturbance force --psd " + (dir / "psd.csv").string() + " --sensitivity " + (dir / "s.csv").string() +
-                  " --out " + (dir / "f.csv").string());
-  EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_TRUE(std::filesystem::exists(dir / "f.csv"));
-  auto bad = RunStagefit("disturbance sensitivity --source spindle --out " + (dir / "x.csv").string());
-  EXPECT_EQ(bad.exit_code, 2) << bad.output;
-  EXPECT_NE(bad.output.find("ty.F.Dz"), std::string::npos) << bad.output;
-}
-
 }  // namespace
 }  // namespace stagefit
