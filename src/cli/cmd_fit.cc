@@ -102,7 +102,7 @@ void RegisterFitCommand(CLI::App& app) {
   struct Options {
     CommonOptions common;
     std::string measurement, params, recipe, solver, nlopt_algorithm, jacobian, space, out;
-    int starts = 1, max_iterations = 100;
+    int starts = 1, max_iterations = 100, probe_rounds = 4;
     std::uint64_t seed = 1;
     double fmin_hz = 0.0, fmax_hz = 0.0;
   };
@@ -126,6 +126,10 @@ void RegisterFitCommand(CLI::App& app) {
   auto* iterations_option = command->add_option("--max-iterations", o->max_iterations,
                                                 "iteration budget per start (default 100)")
                                 ->check(CLI::PositiveNumber);
+  auto* probe_option = command->add_option("--probe-rounds", o->probe_rounds,
+                                           "after the fit, rounds of basin probes: each stiffness x 1/8 .. 8, "
+                                           "restart from the best probe that lowers the error (default 4; 0: none)")
+                           ->check(CLI::NonNegativeNumber);
   auto* space_option = command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
                            ->check(CLI::IsMember({"compliance", "raw"}));
   auto* fmin_option = command->add_option("--fmin", o->fmin_hz, "lower end of the comparison band, Hz");
@@ -147,6 +151,7 @@ void RegisterFitCommand(CLI::App& app) {
     if (starts_option->count() > 0) recipe.options.num_starts = o->starts;
     if (seed_option->count() > 0) recipe.options.seed = o->seed;
     if (iterations_option->count() > 0) recipe.options.max_iterations = o->max_iterations;
+    if (probe_option->count() > 0) recipe.options.max_probe_rounds = o->probe_rounds;
     if (space_option->count() > 0) recipe.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
     if (fmin_option->count() > 0) recipe.comparison.fmin_hz = o->fmin_hz;
     if (fmax_option->count() > 0) recipe.comparison.fmax_hz = o->fmax_hz;

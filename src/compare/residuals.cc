@@ -380,18 +380,25 @@ double Comparison::Error(const model::ModelSpec& spec) const {
 void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
                                       Eigen::MatrixXd* J) const {
-  STAGEFIT_ASSERT(r != nullptr, "r must not be null");
+  response::FrfWithDerivatives workspace;
+  ResidualsAndJacobian(spec, params, r, J, &workspace);
+}
+
+void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
+                                      const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
+                                      Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const {
+  STAGEFIT_ASSERT(r != nullptr && workspace != nullptr, "r and workspace must not be null");
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
   auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
   const auto quantity = ToResponseQuantity(quantity_);
   const int np = num_points();
   const bool want_jacobian = J != nullptr && !params.empty();
 
-  response::FrfWithDerivatives frf;
+  response::FrfWithDerivatives& frf = *workspace;
   if (want_jacobian) {
-    frf = evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, params, assembled);
+    evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, params, assembled, &frf);
   } else {
-    frf.frf = evaluator.Evaluate(frequency_hz_, quantity);
+    evaluator.Evaluate(frequency_hz_, quantity, &frf.frf);
   }
   Eigen::VectorXcd e;
   CalcLogErrors(frf.frf.values, &e);

@@ -198,6 +198,8 @@ StageResult RunCeres(const ceres::CostFunction& cost, const ParameterMap& map, c
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solver_options.max_num_iterations = options.max_iterations;
+  solver_options.initial_trust_region_radius = options.initial_trust_region_radius;
+  solver_options.use_nonmonotonic_steps = options.nonmonotonic_steps;
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;

@@ -2,6 +2,8 @@
 
 #include <fnmatch.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -22,6 +24,45 @@ std::string RuleName(const BoundRule& rule) {
   return (rule.source.empty() ? std::string("bounds") : rule.source + ": bounds") + " '" + rule.pattern + "'";
 }
 
+// FitOptions::probe_factors: from the kept optimum, try each log-scale parameter times each factor;
+// restart from the best probe that lowers the cost, keep the restarted fit when it ends lower.
+void ProbeBasins(const ModelFitProblem& problem, const FitOptions& options, std::vector<ParameterSpec>* start,
+                 FitSummary* summary, int* evaluations) {
+  FitOptions restart_options = options;
+  restart_options.num_starts = 1;
+  Eigen::VectorXd r;
+  for (int round = 0; round < options.max_probe_rounds && summary->status != FitStatus::kFailed; ++round) {
+    const Eigen::VectorXd p = summary->values();
+    double best_cost = summary->final_cost * (1.0 - options.probe_min_improvement);
+    Eigen::VectorXd best;
+    for (size_t i = 0; i < start->size(); ++i) {
+      const ParameterSpec& s = (*start)[i];
+      if (!s.log_scale) continue;
+      for (const double factor : options.probe_factors) {
+        Eigen::VectorXd q = p;
+        q[i] = std::clamp(p[i] * factor, s.lower, s.upper);
+        if (q[i] == p[i]) continue;
+        ++*evaluations;
+        if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) continue;
+        const double cost = 0.5 * r.squaredNorm();
+        if (cost < best_cost) {
+          best_cost = cost;
+          best = q;
+        }
+      }
+    }
+    if (best.size() == 0) break;
+    for (size_t i = 0; i < start->size(); ++i) (*start)[i].initial = best[i];
+    FitSummary restarted = Solve(problem, *start, restart_options);
+    if (!(restarted.final_cost < summary->final_cost)) {
+      *evaluations += restarted.num_evaluations;
+      break;
+    }
+    restarted.num_evaluations += summary->num_evaluations;
+    *summary = std::move(restarted);
+  }
+}
+
 }  // namespace
 
 bool MatchesPattern(const std::string& name, const std::string& pattern) {
@@ -37,7 +78,7 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
   STAGEFIT_ASSERT(p.size() == num_parameters(), "expected " << num_parameters() << " parameters, got " << p.size());
   for (int i = 0; i < num_parameters(); ++i) model::SetParameter(spec_, parameters_[i], p[i]);
   try {
-    comparison_->ResidualsAndJacobian(spec_, parameters_, residuals, jacobian);
+    comparison_->ResidualsAndJacobian(spec_, parameters_, residuals, jacobian, &workspace_);
   } catch (const NumericalError&) {
     return false;
   } catch (const InputError&) {
@@ -112,10 +153,17 @@ std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
 FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& comparison,
                     const std::vector<model::ParameterInfo>& parameters, const FitOptions& options,
                     const std::vector<BoundRule>& bounds) {
+  const auto t0 = std::chrono::steady_clock::now();
   const std::vector<ParameterSpec> specs = MakeParameterSpecs(spec, parameters, bounds);
   const double error_before = comparison.Error(spec);
   const ModelFitProblem problem(spec, comparison, parameters);
-  FitSummary summary = Solve(problem, specs, options);
+  std::vector<ParameterSpec> start = specs;
+  int probe_evaluations = 0;
+  FitSummary summary = Solve(problem, start, options);
+  ProbeBasins(problem, options, &start, &summary, &probe_evaluations);
+  summary.num_evaluations += probe_evaluations;
+  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (size_t i = 0; i < specs.size(); ++i) summary.parameters[i].initial = specs[i].initial;
   for (size_t i = 0; i < parameters.size(); ++i) model::SetParameter(spec, parameters[i], summary.parameters[i].value);
   summary.initial_error = error_before;
   summary.initial_cost = 0.5 * error_before * error_before;

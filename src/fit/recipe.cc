@@ -143,7 +143,7 @@ FitRecipe ParseFitRecipe(std::string_view text, const std::string& source, const
   r.CheckKeys(root, "",
               {"measurement", "model", "space", "band", "significance", "params", "solver", "jacobian",
                "nlopt_algorithm", "nlopt_max_evaluations", "polish", "starts", "start_factor", "seed",
-               "max_iterations", "bounds"});
+               "max_iterations", "probe_rounds", "bounds"});
 
   if (auto s = r.String(root, "measurement")) recipe.measurement = Resolve(*s, base_folder);
   if (auto s = r.String(root, "model")) recipe.model = Resolve(*s, base_folder);
@@ -220,6 +220,7 @@ FitRecipe ParseFitRecipe(std::string_view text, const std::string& source, const
   }
   if (auto v = r.Integer(root, "seed", 0)) recipe.options.seed = static_cast<std::uint64_t>(*v);
   if (auto v = r.Integer(root, "max_iterations", 1)) recipe.options.max_iterations = static_cast<int>(*v);
+  if (auto v = r.Integer(root, "probe_rounds", 0)) recipe.options.max_probe_rounds = static_cast<int>(*v);
 
   if (const toml::node* node = root.get("bounds")) {
     const toml::array* a = node->as_array();

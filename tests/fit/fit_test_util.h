@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <random>
@@ -45,6 +46,17 @@ inline void ScatterParameters(model::ModelSpec* spec, const std::vector<std::str
   for (const auto& p : model::MatchParameters(*spec, patterns)) {
     const double factor = std::exp((2.0 * Uniform(generator) - 1.0) * std::log(max_factor));
     model::SetParameter(*spec, p, model::GetParameter(*spec, p) * factor);
+  }
+}
+
+/// Multiplies each parameter matching `patterns` by exp(sigma z), sigma = ln(max_factor) / 2, z standard
+/// normal truncated at +-2: log-normal scatter of at most a factor max_factor (the fit benchmark's).
+inline void ScatterParametersLogNormal(model::ModelSpec* spec, const std::vector<std::string>& patterns,
+                                       double max_factor, std::mt19937_64& generator) {
+  for (const auto& p : model::MatchParameters(*spec, patterns)) {
+    const double sigma = std::log(max_factor) / 2.0;
+    const double z = std::clamp(Normal(generator), -2.0, 2.0);
+    model::SetParameter(*spec, p, model::GetParameter(*spec, p) * std::exp(sigma * z));
   }
 }
 

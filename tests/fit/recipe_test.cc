@@ -34,6 +34,7 @@ starts = 8
 start_factor = 2.5
 seed = 42
 max_iterations = 30
+probe_rounds = 2
 [[bounds]]
 pattern = "hexapod.k.R?"
 lower = "0.2 Nm/urad"
@@ -58,11 +59,12 @@ factor = 5
   EXPECT_DOUBLE_EQ(r.options.start_factor, 2.5);
   EXPECT_EQ(r.options.seed, 42u);
   EXPECT_EQ(r.options.max_iterations, 30);
+  EXPECT_EQ(r.options.max_probe_rounds, 2);
   ASSERT_EQ(r.bounds.size(), 2u);
   EXPECT_DOUBLE_EQ(*r.bounds[0].lower, 2e5);
   EXPECT_DOUBLE_EQ(*r.bounds[0].upper, 1e7);
   EXPECT_TRUE(r.bounds[0].dimension == dim::kRotationalStiffness);
-  EXPECT_EQ(r.bounds[0].source, "r.toml:16");  // the [[bounds]] header line
+  EXPECT_EQ(r.bounds[0].source, "r.toml:17");  // the [[bounds]] header line
   EXPECT_DOUBLE_EQ(*r.bounds[1].factor, 5.0);
 }
 

@@ -184,6 +184,11 @@ class Comparison {
   /// model::MatchParameters(spec, ...). J may be null. Same throws as Error().
   void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
                             Eigen::VectorXd* r, Eigen::MatrixXd* J) const;
+  /// The same with the model's FRFs and derivatives held in `workspace` (one per thread), whose storage
+  /// is reused from call to call: a fit loop then allocates nothing per evaluation (a fresh
+  /// Nf x Nout x Nin x P derivative array costs more in page faults than computing it).
+  void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
+                            Eigen::VectorXd* r, Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const;
 
   /// The error with its breakdown by element and band, and the model's FRFs on the grid.
   ComparisonResult Evaluate(const model::ModelSpec& spec) const;

@@ -104,6 +104,14 @@ struct FitOptions {
   JacobianKind jacobian = JacobianKind::kAnalytic;
   /// Ceres: Levenberg-Marquardt iterations per start (and per polish).
   int max_iterations = 100;
+  /// Ceres: the initial trust-region radius (1 / the initial Levenberg-Marquardt damping, in the
+  /// scaled variables theta) and whether steps may raise the cost for a while (non-monotonic steps).
+  /// Ceres' own default, 1e4, lets the first steps jump far in ln k: a stiffness whose mode is far
+  /// off is then moved across other modes into a wrong basin. With 1 the first steps stay short and
+  /// the share of fits of the 27 stiffnesses reaching the noise floor rose from 67 % to 85 %
+  /// (tests/bench/bench_fit, docs/fitting.md).
+  double initial_trust_region_radius = 1.0;
+  bool nonmonotonic_steps = false;
   /// Ceres convergence: relative cost change, max-norm of the projected gradient relative to its
   /// start value, and relative step size.
   double function_tolerance = 1e-10;
@@ -127,6 +135,15 @@ struct FitOptions {
   double min_relative_sensitivity = 1e-3;
   double max_correlation = 0.95;
   double max_relative_std = 1.0;
+  /// Model fits only (FitModel): basin probes after the fit. Each log-scale parameter in turn is
+  /// multiplied by each factor (clipped to its bounds) with the others kept, and the error evaluated
+  /// (residuals only, no Jacobian). The best probe that lowers the cost by more than
+  /// probe_min_improvement (relative) restarts the fit from there; up to max_probe_rounds times.
+  /// A parameter stuck on the wrong side of a mode crossing (its mode moved into a band where it
+  /// fits something else) is a factor of several away from its basin: one probe finds it.
+  std::vector<double> probe_factors = {0.125, 0.25, 0.5, 2.0, 4.0, 8.0};
+  int max_probe_rounds = 4;
+  double probe_min_improvement = 1e-3;
   /// Called after each iteration; the library never prints. May be empty.
   std::function<void(const FitProgress&)> progress;
 };

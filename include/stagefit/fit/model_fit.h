@@ -57,6 +57,7 @@ class ModelFitProblem final : public LeastSquaresProblem {
 
  private:
   mutable model::ModelSpec spec_;
+  mutable response::FrfWithDerivatives workspace_;  // reused by every evaluation
   const compare::Comparison* comparison_;
   std::vector<model::ParameterInfo> parameters_;
 };
