@@ -71,8 +71,9 @@ TEST(FitModel, RecoversScatteredStiffnessesWithinThreeStd) {
 
 TEST(FitModel, BasinProbesLeaveALocalMinimumThePlainFitStopsIn) {
   // Case 7 of tests/bench/bench_fit: all 27 stiffnesses scattered log-normally by up to x1.6. Started
-  // from Table 2.1, the fit alone stops with the spindle's and the tilt stage's axial stiffnesses far
-  // too soft (error ~15 x the noise floor); probing each stiffness by factors 1/8 .. 8 finds the way out.
+  // from Table 2.1, the fit alone stops with the spindle's axial and the tilt stage's torsional
+  // stiffness far too soft (error ~15 x the noise floor); probing each stiffness by factors 1/8 .. 8
+  // finds the way out.
   const std::vector<std::string> patterns = {"*.k.*"};
   std::mt19937_64 generator(107);
   model::ModelSpec truth = model::DefaultModelSpec();
