@@ -52,7 +52,10 @@ void ProbeBasins(const ModelFitProblem& problem, const FitOptions& options, std:
       }
     }
     if (best.size() == 0) break;
-    for (size_t i = 0; i < start->size(); ++i) (*start)[i].initial = best[i];
+    // exp(ln p) of a parameter at its bound can land one rounding step outside it: clip every value.
+    for (size_t i = 0; i < start->size(); ++i) {
+      (*start)[i].initial = std::clamp(best[i], (*start)[i].lower, (*start)[i].upper);
+    }
     FitSummary restarted = Solve(problem, *start, restart_options);
     if (!(restarted.final_cost < summary->final_cost)) {
       *evaluations += restarted.num_evaluations;
