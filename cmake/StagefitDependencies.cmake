@@ -3,6 +3,8 @@ find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(FFTW3 REQUIRED IMPORTED_TARGET fftw3)
 pkg_check_modules(MATIO REQUIRED IMPORTED_TARGET matio)
+find_package(ZLIB REQUIRED)  # the .mat structure check inflates compressed variables (v5)
+pkg_check_modules(HDF5 REQUIRED IMPORTED_TARGET hdf5)  # ... and reads the sizes of v7.3 files
 find_package(Ceres REQUIRED)
 find_package(NLopt REQUIRED)
 find_package(tomlplusplus REQUIRED)

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs the whole test suite (unit, integration and CLI tests) with CTest.
+# Sets up, builds and runs the whole test suite (unit, integration and CLI tests) with CTest, then
+# a short fuzz pass over the file readers (scripts/fuzz.sh).
 # Usage: bash scripts/test.sh            (release build in ./build)
 #        bash scripts/test.sh --sanitize (AddressSanitizer + UBSan build in ./build-asan)
 set -euo pipefail
@@ -13,3 +14,5 @@ else
   cd build
 fi
 ctest --output-on-failure -j"$(nproc)" --timeout 600
+# Then a short libFuzzer pass over every file reader (clang build in ./build-fuzz; 10 s per target).
+cd .. && bash scripts/fuzz.sh --seconds 10

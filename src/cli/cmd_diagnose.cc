@@ -40,6 +40,9 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   command->add_option("--fmax", o->fmax, "upper end of the band, Hz");
   command->add_option("--out", o->out, "write the baseline with the best effect applied (model file) here");
   command->callback([o] {
+    const std::vector<std::string> inputs = {o->common.model_path, o->measurement};
+    if (!o->out.empty()) CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
+    if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     model::ModelSpec spec = LoadModelFromOptions(o->common);
     measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
     diagnose::DiagnoseOptions options;
@@ -61,9 +64,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     diagnose::DiagnoseSummary summary = diagnose::Diagnose(spec, data, options);
     std::printf("%s", summary.BriefReport().c_str());
     std::printf("(%.1f s)\n", summary.time_s);
-    std::vector<std::string> inputs = {o->common.model_path, o->measurement};
     if (!o->out.empty() && summary.effect_found) {
-      CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
       model::ModelSpec with = diagnose::ApplyCandidate(summary, summary.candidates[0]);
       with.history.push_back({"diagnose --with " + summary.candidates[0].with, summary.candidates[0].error_after,
                               summary.candidates[0].explanation});

@@ -123,6 +123,7 @@ sd::SpindleGeometry ParseGeometry(const std::string& z1, const std::string& z2, 
 
 void RunPsd(const PsdFlags& f) {
   CheckNotAnInput(f.out, {f.record});
+  if (!f.report.empty()) CheckNotAnInput(f.report, {f.record});
   const sd::CsvTable table = sd::ReadCsvTable(f.record);
   nlohmann::json report = {{"record", f.record}, {"kind", f.kind}};
   sd::CsvTable out;
@@ -262,6 +263,7 @@ sd::PsdTable PsdColumn(const sd::CsvTable& t, const std::string& frequency_colum
 
 void RunSynth(const SynthFlags& f) {
   CheckNotAnInput(f.out, {f.psd});
+  if (!f.report.empty()) CheckNotAnInput(f.report, {f.psd});
   const sd::CsvTable table = sd::ReadCsvTable(f.psd);
   std::mt19937_64 rng(f.seed);
   sd::CsvTable out;
@@ -389,6 +391,7 @@ struct ForceFlags {
 
 void RunForce(const ForceFlags& f) {
   CheckNotAnInput(f.out, {f.psd, f.sensitivity});
+  if (!f.report.empty()) CheckNotAnInput(f.report, {f.psd, f.sensitivity});
   const sd::CsvTable motion_table = sd::ReadCsvTable(f.psd);
   const std::vector<std::string> names = DataColumns(motion_table, "frequency_hz");
   const std::string column = f.column.empty() ? names.front() : f.column;

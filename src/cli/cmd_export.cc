@@ -44,7 +44,7 @@ void RegisterExportCommand(CLI::App& app) {
     model::StateSpace ss = model::CalcStateSpace(sys);
     std::vector<std::string> inputs;
     if (!o->common.model_path.empty()) inputs.push_back(o->common.model_path);
-    CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
+    for (const auto& file : StateSpaceFiles(o->out)) CheckNotAnInput(file, {inputs.begin(), inputs.end()});
     std::vector<std::string> written = WriteStateSpace(o->out, ss, sys);
     std::printf("State space: %d states, %d inputs, %d outputs (%s)\n", static_cast<int>(ss.A.rows()),
                 static_cast<int>(ss.B.cols()), static_cast<int>(ss.C.rows()), o->io.c_str());

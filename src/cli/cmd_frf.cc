@@ -10,6 +10,7 @@
 #include "report.h"
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "stagefit/measurement/csv_file.h"
 #include "stagefit/measurement/measurement_file.h"
 #include "stagefit/model/assembled_model.h"
 #include "stagefit/model/linear_system.h"
@@ -204,7 +205,9 @@ void RegisterFrfCommand(CLI::App& app) {
     std::vector<std::filesystem::path> protected_inputs;
     if (!o->common.model_path.empty()) protected_inputs.push_back(o->common.model_path);
     if (!o->measurement.empty()) protected_inputs.push_back(o->measurement);
+    if (!o->measurement.empty()) protected_inputs.push_back(measurement::GeometrySidecarPath(o->measurement));
     CheckNotAnInput(o->out, protected_inputs);
+    CheckNotAnInput(std::filesystem::path(o->out).replace_extension().string() + ".geometry.csv", protected_inputs);
     WriteFrfCsv(o->out, h, output_geometry, input_geometry);
 
     std::printf("FRF: %d outputs x %d inputs (%s), %d frequencies, %s\n", h.num_outputs(), h.num_inputs(),

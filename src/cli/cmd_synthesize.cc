@@ -50,6 +50,8 @@ void RegisterSynthesizeCommand(CLI::App& app) {
     if (!(o->fmin > 0 && o->fmax > o->fmin) || o->points < 2) throw UsageError("need 0 < --fmin < --fmax and --points >= 2");
     model::ModelSpec spec = LoadModelFromOptions(o->common);
     CheckNotAnInput(o->out, {o->common.model_path});
+    if (!o->raw.empty()) CheckNotAnInput(o->raw, {o->common.model_path});
+    if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {o->common.model_path});
     nlohmann::json report = {{"command", "synthesize"}, {"noise", o->noise}, {"seed", o->seed}};
     measurement::FrfData data;
     if (o->hidden_effects >= 0) {

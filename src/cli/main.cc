@@ -1,6 +1,7 @@
 #include <iostream>
 
 #include "command.h"
+#include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::cli {
@@ -14,6 +15,8 @@ int& ExitCode() {
 
 int main(int argc, char** argv) {
   using namespace stagefit::cli;
+  // An interrupted run (Ctrl-C) leaves the earlier outputs intact and no temporary file behind.
+  stagefit::RemoveTemporaryFilesOnSignal();
   CLI::App app{"stagefit: models of precision positioning stages, tuned against vibration measurements"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "stagefit 0.1.0");

@@ -21,7 +21,8 @@ std::string ModelSource(const CommonOptions& options) {
 void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs) {
   std::vector<std::filesystem::path> input_paths(inputs.begin(), inputs.end());
   CheckNotAnInput(path, input_paths);
-  WriteFileAtomically(path, report.dump(2) + "\n");
+  // Text that is not UTF-8 (a file name, say) is written as U+FFFD rather than failing the run.
+  WriteFileAtomically(path, report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
 }  // namespace stagefit::cli

@@ -28,12 +28,16 @@ std::string MatrixCsv(const Eigen::MatrixXd& m, const std::vector<std::string>& 
   return out.str();
 }
 
+std::string CsvPath(const std::string& out, const char* suffix) {
+  std::filesystem::path stem(out);
+  if (stem.extension() == ".csv") stem.replace_extension();
+  return stem.string() + "_" + suffix + ".csv";
+}
+
 }  // namespace
 
 std::vector<std::string> WriteStateSpaceCsv(const std::string& out, const model::StateSpace& ss,
                                             const model::SecondOrderSystem& sys) {
-  std::filesystem::path stem(out);
-  if (stem.extension() == ".csv") stem.replace_extension();
   struct Item {
     const char* suffix;
     const Eigen::MatrixXd* m;
@@ -49,7 +53,7 @@ std::vector<std::string> WriteStateSpaceCsv(const std::string& out, const model:
                         {"K", &sys.K, &sys.dof_names, &sys.dof_names}};
   std::vector<std::string> written;
   for (const auto& item : items) {
-    std::string path = stem.string() + "_" + item.suffix + ".csv";
+    std::string path = CsvPath(out, item.suffix);
     WriteFileAtomically(path, MatrixCsv(*item.m, *item.rows, *item.cols));
     written.push_back(path);
   }
@@ -58,6 +62,13 @@ std::vector<std::string> WriteStateSpaceCsv(const std::string& out, const model:
 
 std::vector<std::string> WriteStateSpaceMat(const std::string& out, const model::StateSpace& ss,
                                             const model::SecondOrderSystem& sys);
+
+std::vector<std::string> StateSpaceFiles(const std::string& out) {
+  if (std::filesystem::path(out).extension() == ".mat") return {out};
+  std::vector<std::string> files;
+  for (const char* suffix : {"A", "B", "C", "D", "M", "C_damping", "K"}) files.push_back(CsvPath(out, suffix));
+  return files;
+}
 
 std::vector<std::string> WriteStateSpace(const std::string& out, const model::StateSpace& ss,
                                          const model::SecondOrderSystem& sys) {

@@ -16,4 +16,7 @@ namespace stagefit::cli {
 std::vector<std::string> WriteStateSpace(const std::string& out, const model::StateSpace& ss,
                                          const model::SecondOrderSystem& system);
 
+/// The paths WriteStateSpace(out, ...) writes, to check them against the inputs beforehand.
+std::vector<std::string> StateSpaceFiles(const std::string& out);
+
 }  // namespace stagefit::cli

@@ -11,6 +11,7 @@
 
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/utf8.h"
 
 namespace stagefit::disturbance {
 namespace {
@@ -87,6 +88,10 @@ CsvTable ReadCsvTable(const std::filesystem::path& path) {
     if (!have_header) {
       std::set<std::string> seen;
       for (const std::string& name : fields) {
+        if (!IsValidUtf8(name)) {
+          throw InputError(table.source + ":" + std::to_string(line_number) + ": header column '" +
+                           EscapeNonUtf8(name) + "' is not valid UTF-8, expected UTF-8 column names");
+        }
         if (name.empty() || !seen.insert(name).second) {
           throw InputError(table.source + ":" + std::to_string(line_number) + ": header column '" +
                            name + "' is empty or repeated, expected distinct column names");

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "stagefit/common/error.h"
@@ -38,14 +39,18 @@ class RecipeReader {
     return std::nullopt;
   }
 
-  std::optional<std::int64_t> Integer(const toml::table& t, std::string_view key, std::int64_t min) {
+  // An integer in [min, max]; max defaults to the largest int, the type of the counts it sets.
+  std::optional<std::int64_t> Integer(const toml::table& t, std::string_view key, std::int64_t min,
+                                      std::int64_t max = std::numeric_limits<int>::max()) {
     const toml::node* node = t.get(key);
     if (node == nullptr) return std::nullopt;
     if (node->is_integer()) {
       const std::int64_t v = *node->value<std::int64_t>();
-      if (v >= min) return v;
+      if (v >= min && v <= max) return v;
     }
-    Error(node, std::string(key), "= " + Show(*node) + ", expected an integer >= " + std::to_string(min));
+    std::string expected = "an integer >= " + std::to_string(min);
+    if (max < std::numeric_limits<std::int64_t>::max()) expected += " and <= " + std::to_string(max);
+    Error(node, std::string(key), "= " + Show(*node) + ", expected " + expected);
     return std::nullopt;
   }
 
@@ -218,7 +223,7 @@ FitRecipe ParseFitRecipe(std::string_view text, const std::string& source, const
   if (auto v = r.Number(root.get("start_factor"), "start_factor", 1.0, 1e6, "a number >= 1")) {
     recipe.options.start_factor = *v;
   }
-  if (auto v = r.Integer(root, "seed", 0)) recipe.options.seed = static_cast<std::uint64_t>(*v);
+  if (auto v = r.Integer(root, "seed", 0, std::numeric_limits<std::int64_t>::max())) recipe.options.seed = static_cast<std::uint64_t>(*v);
   if (auto v = r.Integer(root, "max_iterations", 1)) recipe.options.max_iterations = static_cast<int>(*v);
   if (auto v = r.Integer(root, "probe_rounds", 0)) recipe.options.max_probe_rounds = static_cast<int>(*v);
 

@@ -228,7 +228,8 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
   bool with_coherence = false;
   std::map<std::string, int> output_index, input_index;
   std::vector<std::vector<std::vector<Point>>> points;  // [output][input] -> points
-  for (const auto& [line_no, line] : Lines(content)) {
+  const auto lines = Lines(content);
+  for (const auto& [line_no, line] : lines) {
     const std::string_view t = Trim(line);
     if (t.empty()) continue;
     if (t.front() == '#') {
@@ -292,6 +293,18 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
       if (p.coherence < 0.0 || p.coherence > 1.0) {
         err.Fail(line_no, "column 'coherence': " + fields[5] + ", expected a value in [0, 1]");
       }
+    }
+    // Every pair needs a row per frequency: refuse channel counts the file cannot hold before the
+    // pair table (outputs x inputs) is allocated.
+    const std::size_t nout = output_index.size() + !output_index.count(fields[1]);
+    const std::size_t nin = input_index.size() + !input_index.count(fields[2]);
+    if (static_cast<double>(nout) * static_cast<double>(nin) > static_cast<double>(lines.size())) {
+      std::ostringstream m;
+      m << "with output '" << fields[1] << "' and input '" << fields[2] << "' the file names " << nout
+        << " outputs and " << nin << " inputs, whose pairs need at least " << nout * nin
+        << " rows, but it has only " << lines.size()
+        << " lines; expected one row per output, input and frequency";
+      err.Fail(line_no, m.str());
     }
     auto [o_it, o_new] = output_index.emplace(fields[1], static_cast<int>(output_index.size()));
     if (o_new) {

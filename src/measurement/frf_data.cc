@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/utf8.h"
 
 namespace stagefit::measurement {
 namespace {
@@ -26,6 +27,10 @@ void ValidateChannels(const FrfData& data, const std::vector<ChannelGeometry>& c
     const ChannelGeometry& c = channels[i];
     const std::string label = std::string(kind) + " " + std::to_string(i + 1);
     if (c.name.empty()) Fail(data, label + ": empty channel name, expected a name");
+    if (!IsValidUtf8(c.name)) {
+      Fail(data, label + ": channel name '" + EscapeNonUtf8(c.name) +
+                     "' is not valid UTF-8, expected UTF-8 text");
+    }
     if (!names.insert(c.name).second) {
       Fail(data, label + ": channel name '" + c.name + "' is used twice, expected unique names");
     }

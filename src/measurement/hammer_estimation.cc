@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/utf8.h"
 
 namespace stagefit::measurement {
 namespace {
@@ -205,6 +206,10 @@ void Validate(const RawHammerData& data) {
       const ChannelGeometry& c = channels[i];
       if (c.name.empty()) {
         Fail(data, std::string(field) + "(" + std::to_string(i + 1) + "): empty name, expected one");
+      }
+      if (!IsValidUtf8(c.name)) {
+        Fail(data, std::string(field) + "(" + std::to_string(i + 1) + "): " + Quote(EscapeNonUtf8(c.name)) +
+                       " is not valid UTF-8, expected UTF-8 text");
       }
       if (!names.insert(c.name).second) {
         Fail(data, std::string(field) + ": " + Quote(c.name) + " appears twice, expected unique names");

@@ -3,12 +3,9 @@
 #include <matio.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -18,6 +15,7 @@
 
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "mat_v5_structure.h"
 
 namespace stagefit::measurement {
 namespace fs = std::filesystem;
@@ -184,6 +182,7 @@ class MatReader {
     // zlib cannot compress by more than about 1032:1, so a variable cannot hold more bytes than
     // this; anything larger is a corrupt size field and is rejected before matio allocates it.
     limit_bytes_ = static_cast<double>(file_size) * 1100.0 + 1048576.0;
+    internal::CheckMatFileStructure(path_, static_cast<std::uint64_t>(limit_bytes_));
     MatPtr mat(Mat_Open(path_.string().c_str(), MAT_ACC_RDONLY));
     if (!mat) {
       throw InputError("MAT file " + Quote(path_) +
@@ -223,6 +222,14 @@ class MatReader {
     if (var->rank < 0 || var->rank > 32 || numel * element > limit_bytes_) {
       Fail(name, "declares " + std::to_string(numel) +
                      " elements, more than the file can hold (corrupt size field)");
+    }
+    // An empty array (a zero dimension) may still declare a huge other dimension: a char array's
+    // rows become strings, so each dimension is bounded too.
+    for (int k = 0; k < var->rank; ++k) {
+      if (static_cast<double>(var->dims[k]) > limit_bytes_) {
+        Fail(name, "dimension " + std::to_string(k + 1) + " = " + std::to_string(var->dims[k]) +
+                       ", more than the file can hold (corrupt size field)");
+      }
     }
   }
 
@@ -348,8 +355,6 @@ matvar_t* CreateArray(const Array& a) {
                        dims.data(), a.re.empty() ? &empty : const_cast<double*>(a.re.data()), 0);
 }
 
-std::atomic<int> g_scratch_counter{0};
-
 void WriteArrays(const fs::path& path, const std::vector<Array>& arrays, MatVersion version) {
   InitMatioLog();
   std::set<std::string> names;
@@ -367,17 +372,10 @@ void WriteArrays(const fs::path& path, const std::vector<Array>& arrays, MatVers
     throw InputError("MAT file " + Quote(path) +
                      ": v7.3 requested but this build's matio has no HDF5 support; write v5");
   }
-  fs::path scratch = path;
-  scratch += ".matio-" + std::to_string(::getpid()) + "-" + std::to_string(g_scratch_counter++);
-  struct Remover {
-    fs::path p;
-    ~Remover() {
-      std::error_code ignored;
-      fs::remove(p, ignored);
-    }
-  } remover{scratch};
+  // matio writes to a file name: a temporary beside the target, renamed over it once complete.
+  TemporaryPath temporary(path);
   {
-    MatPtr mat(Mat_CreateVer(scratch.string().c_str(), nullptr,
+    MatPtr mat(Mat_CreateVer(temporary.path().string().c_str(), nullptr,
                              version == MatVersion::kV73 ? MAT_FT_MAT73 : MAT_FT_MAT5));
     if (!mat) {
       throw InputError("cannot write MAT file " + Quote(path) +
@@ -391,12 +389,7 @@ void WriteArrays(const fs::path& path, const std::vector<Array>& arrays, MatVers
       }
     }
   }
-  std::ifstream in(scratch, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (!in.good() && !in.eof()) {
-    throw InputError("MAT file " + Quote(path) + ": reading back the scratch file failed");
-  }
-  WriteFileAtomically(path, bytes);
+  temporary.MoveOverTarget();
 }
 
 Array FromVariable(const MatVariable& v) {

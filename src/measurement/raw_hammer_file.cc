@@ -1,7 +1,6 @@
 #include "stagefit/measurement/raw_hammer_file.h"
 
 #include <matio.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
@@ -11,7 +10,9 @@
 #include <sstream>
 #include <system_error>
 
+#include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "mat_v5_structure.h"
 
 namespace stagefit::measurement {
 namespace {
@@ -42,6 +43,10 @@ class Reader {
     if (!std::filesystem::is_regular_file(path, ec)) {
       throw InputError("'" + path.string() + "': no such file, expected a raw hammer .mat file");
     }
+    // zlib compresses by at most about 1032:1 and every value takes at least one byte: a variable
+    // declaring more values than this is a corrupt size field, rejected before matio allocates it.
+    max_values_ = static_cast<long double>(std::filesystem::file_size(path, ec)) * 1100.0L + 1048576.0L;
+    internal::CheckMatFileStructure(path, static_cast<std::uint64_t>(max_values_));
     mat_.reset(Mat_Open(path.string().c_str(), MAT_ACC_RDONLY));
     if (!mat_) {
       throw InputError("'" + path.string() +
@@ -64,7 +69,7 @@ class Reader {
   // limit before any data are read, then its values (column-major) as doubles.
   std::vector<double> Numeric(const char* name, int rank, std::vector<std::size_t>& dims) const {
     VarPtr info = Info(name);
-    if (!info) Fail(name, "missing, expected it");
+    if (!info) Fail(name, "missing, expected this variable (layout: measurements/README.md)");
     dims = Dims(info.get());
     if (static_cast<int>(dims.size()) > rank) {
       std::size_t extra = 1;
@@ -81,6 +86,10 @@ class Reader {
     if (count > static_cast<long double>(kMaxRawSamplesTotal)) {
       Fail(name, "size " + SizeText(dims) + " (" + std::to_string(static_cast<double>(count)) +
                      " values), expected at most " + std::to_string(kMaxRawSamplesTotal));
+    }
+    if (count > max_values_) {
+      Fail(name, "size " + SizeText(dims) + " (" + std::to_string(static_cast<long long>(count)) +
+                     " values), more than the file can hold (a corrupt size field)");
     }
     if (count == 0) Fail(name, "empty (size " + SizeText(dims) + "), expected data");
     if (info->isComplex) Fail(name, "complex, expected real values");
@@ -105,12 +114,18 @@ class Reader {
     return out;
   }
 
-  static std::string CharData(const matvar_t* v) {
+  // The characters of char array `v` (variable `name`, for messages).
+  std::string CharData(const char* name, const matvar_t* v) const {
     std::size_t n = 1;
     for (int i = 0; i < v->rank; ++i) n *= v->dims[i];
     std::string s;
     if (n == 0 || v->data == nullptr) return s;
     const std::size_t width = Mat_SizeOf(v->data_type);
+    if ((width != 1 && width != 2) || v->nbytes / width < n) {
+      Fail(name, "char data of " + std::to_string(v->nbytes) + " bytes for " + std::to_string(n) +
+                     " characters (damaged file?), expected " + std::to_string(n) +
+                     " characters of 1 or 2 bytes");
+    }
     for (std::size_t i = 0; i < n; ++i) {
       if (width == 2) {
         const std::uint16_t c = static_cast<const std::uint16_t*>(v->data)[i];
@@ -129,7 +144,7 @@ class Reader {
     if (!var || var->class_type != MAT_C_CHAR || var->rank != 2 || var->dims[0] > 1) {
       Fail(name, "expected a char row vector");
     }
-    return CharData(var.get());
+    return CharData(name, var.get());
   }
 
   // A char (one string, replicated to `count`) or a cell of `count` char arrays; nullopt if absent.
@@ -140,7 +155,7 @@ class Reader {
     VarPtr var(Mat_VarRead(mat_.get(), name));
     if (!var) Fail(name, "could not be read (damaged file?)");
     if (var->class_type == MAT_C_CHAR && allow_single && var->rank == 2 && var->dims[0] <= 1) {
-      return std::vector<std::string>(count, CharData(var.get()));
+      return std::vector<std::string>(count, CharData(name, var.get()));
     }
     if (var->class_type != MAT_C_CELL) {
       Fail(name, std::string("expected a cell array of ") + std::to_string(count) + " char arrays" +
@@ -158,7 +173,7 @@ class Reader {
       if (cell == nullptr || cell->class_type != MAT_C_CHAR) {
         Fail(name, "element " + std::to_string(i + 1) + " is not a char array, expected text");
       }
-      out.push_back(CharData(cell));
+      out.push_back(CharData(name, cell));
     }
     return out;
   }
@@ -173,6 +188,7 @@ class Reader {
   }
 
   std::filesystem::path path_;
+  long double max_values_ = 0.0L;
   MatPtr mat_;
 };
 
@@ -220,15 +236,15 @@ Eigen::VectorXd ReadRanges(const Reader& r, const char* name, std::size_t count)
   std::vector<std::size_t> dims;
   const std::vector<double> v = r.Numeric(name, 2, dims);
   const std::size_t n = dims[0] * dims[1];
-  if (n == 1) return Eigen::VectorXd::Constant(count, v[0]);
-  if (n != count || (dims[0] != 1 && dims[1] != 1)) {
-    r.Fail(name, "size " + SizeText(dims) + ", expected 1 x 1 or " + std::to_string(count) +
-                     " x 1");
-  }
   for (double x : v) {
     if (!(x >= 0.0) || !std::isfinite(x)) {
       r.Fail(name, "value " + std::to_string(x) + ", expected finite ranges >= 0 (0 = unknown)");
     }
+  }
+  if (n == 1) return Eigen::VectorXd::Constant(count, v[0]);
+  if (n != count || (dims[0] != 1 && dims[1] != 1)) {
+    r.Fail(name, "size " + SizeText(dims) + ", expected 1 x 1 or " + std::to_string(count) +
+                     " x 1");
   }
   return Eigen::Map<const Eigen::VectorXd>(v.data(), count);
 }
@@ -432,10 +448,9 @@ void WriteRawHammerFile(const std::filesystem::path& path, const RawHammerData& 
     }
   }
 
-  std::filesystem::path temporary = path;
-  temporary += ".tmp-" + std::to_string(::getpid());
+  TemporaryPath temporary(path);  // removed unless moved over `path` at the end
   {
-    MatPtr mat(Mat_CreateVer(temporary.string().c_str(), nullptr,
+    MatPtr mat(Mat_CreateVer(temporary.path().string().c_str(), nullptr,
                              version == MatVersion::kV73 ? MAT_FT_MAT73 : MAT_FT_MAT5));
     if (!mat) {
       throw InputError("'" + path.string() + "': cannot create the file (does the folder exist "
@@ -467,17 +482,10 @@ void WriteRawHammerFile(const std::filesystem::path& path, const RawHammerData& 
       }
     } catch (...) {
       mat.reset();
-      std::error_code ec;
-      std::filesystem::remove(temporary, ec);
       throw;
     }
   }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    std::filesystem::remove(temporary, ec);
-    throw InputError("'" + path.string() + "': cannot move the written file into place");
-  }
+  temporary.MoveOverTarget();
 }
 
 }  // namespace stagefit::measurement

@@ -35,8 +35,8 @@ struct MatVariable {
 /// True when this build's matio can create v7.3 (HDF5) files.
 bool IsMatV73Supported();
 
-/// Writes the variables to `path` atomically (written to a scratch file beside it, then moved into
-/// place through AtomicFile). Matrices are stored as double (or complex double) arrays, strings as
+/// Writes the variables to `path` atomically (matio writes a TemporaryPath beside it, which is then
+/// renamed over `path`). Matrices are stored as double (or complex double) arrays, strings as
 /// char arrays, lists of strings as 1 x n cell arrays of char.
 /// Values are written as they are (NaN and Inf included). Throws InputError for an invalid or
 /// repeated variable name, for v7.3 when matio lacks HDF5 support, and when the file cannot be

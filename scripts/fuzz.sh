@@ -1,0 +1,137 @@
+#!/usr/bin/env bash
+# Fuzzes every file reader with libFuzzer (clang, AddressSanitizer, UBSan): installs clang and its
+# runtime when missing, configures and builds ./build-fuzz (-DSTAGEFIT_BUILD_FUZZERS=ON), then runs
+# each target of tests/fuzz/ for a fixed time on a fresh copy of its seeds (tests/fuzz/corpus/) and
+# stored crash inputs (tests/fuzz/regressions/). Fails when a target crashes, hangs (-timeout), uses
+# more than 2 GB (-rss_limit_mb), leaks or throws anything but InputError. Crashing inputs go to
+# build-fuzz/artifacts/<target>/, logs to build-fuzz/logs/.
+#
+# Usage: bash scripts/fuzz.sh [--seconds N] [--targets a,b] [--jobs N] [--keep-corpus]
+#        bash scripts/fuzz.sh --replay         every input of tests/fuzz/regressions/ and corpus/ once
+#        bash scripts/fuzz.sh --make-corpus    regenerate the seeds of tests/fuzz/corpus/
+#   --seconds N      time per target (default 15: about 1.5 minutes for all of them)
+#   --targets a,b    only these targets (names as in tests/fuzz/, e.g. uff_measurement_fuzz)
+#   --jobs N         parallel fuzzing processes per target (libFuzzer -fork=N; default 1)
+#   --keep-corpus    keep and grow build-fuzz/corpus/<target>/ across runs instead of starting
+#                    from the seeds each time (for long runs)
+# Environment: STAGEFIT_FUZZ_BUILD_DIR (default build-fuzz); STAGEFIT_FUZZ_V73=1 also fuzzes v7.3
+# (HDF5) .mat inputs, which the .mat targets skip by default (docs/reliability.md, Fuzzing).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+mode=fuzz
+seconds=15
+jobs=1
+keep_corpus=0
+only=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --seconds) seconds="$2"; shift 2 ;;
+    --targets) only="$2"; shift 2 ;;
+    --jobs) jobs="$2"; shift 2 ;;
+    --keep-corpus) keep_corpus=1; shift ;;
+    --replay) mode=replay; shift ;;
+    --make-corpus) mode=make-corpus; shift ;;
+    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    *) echo "fuzz: unknown argument '$1' (see --help)" >&2; exit 1 ;;
+  esac
+done
+
+all_targets=(model_file_fuzz mat_measurement_fuzz raw_hammer_fuzz uff_measurement_fuzz
+             csv_measurement_fuzz record_csv_fuzz)
+# Largest input per target, bytes: room for the seeds and for the structures being fuzzed.
+declare -A max_len=([model_file_fuzz]=16384 [mat_measurement_fuzz]=32768 [raw_hammer_fuzz]=32768
+                    [uff_measurement_fuzz]=16384 [csv_measurement_fuzz]=8192 [record_csv_fuzz]=8192)
+targets=("${all_targets[@]}")
+if [ -n "$only" ]; then
+  IFS=, read -r -a targets <<<"$only"
+  for t in "${targets[@]}"; do
+    [ -n "${max_len[$t]:-}" ] || { echo "fuzz: unknown target '$t' (${all_targets[*]})" >&2; exit 1; }
+  done
+fi
+
+packages=(clang libclang-rt-14-dev cmake ninja-build pkg-config libeigen3-dev libfftw3-dev libmatio-dev zlib1g-dev libhdf5-dev
+          libtomlplusplus-dev libceres-dev libnlopt-cxx-dev libnlopt-dev nlohmann-json3-dev libcli11-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "fuzz: installing ${missing[*]}" >&2
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+build_dir="${STAGEFIT_FUZZ_BUILD_DIR:-build-fuzz}"
+export LSAN_OPTIONS="suppressions=$PWD/tests/fuzz/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+CC=clang CXX=clang++ cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DSTAGEFIT_BUILD_FUZZERS=ON -DSTAGEFIT_BUILD_TESTS=OFF -DSTAGEFIT_BUILD_BENCHMARKS=OFF >/dev/null
+cmake --build "$build_dir" -j"$(nproc)"
+bin="$build_dir/fuzz"
+
+if [ "$mode" = make-corpus ]; then
+  corpus=tests/fuzz/corpus
+  "$bin/stagefit_fuzz_make_corpus" "$corpus"
+  # Shipped text files as seeds (the large records cut to their first lines).
+  mkdir -p "$corpus/model_file_fuzz" "$corpus/record_csv_fuzz"
+  cp fitting/microstation.toml "$corpus/model_file_fuzz/microstation.toml"
+  sed -n '/^```toml$/,/^```$/p' docs/model-file.md | sed '1d;$d' >"$corpus/model_file_fuzz/model-file-doc.toml"
+  for f in measurements/disturbance/*.csv; do
+    head -n 40 "$f" >"$corpus/record_csv_fuzz/$(basename "$f")"
+  done
+  du -sh "$corpus"
+  exit 0
+fi
+
+# Each input once, without fuzzing: the inputs that once crashed and the seeds.
+if [ "$mode" = replay ]; then
+  status=0
+  for t in "${targets[@]}"; do
+    inputs=()
+    for d in tests/fuzz/regressions/$t tests/fuzz/corpus/$t; do
+      [ -d "$d" ] && while IFS= read -r -d '' f; do inputs+=("$f"); done < <(find "$d" -type f -print0)
+    done
+    [ ${#inputs[@]} -gt 0 ] || continue
+    log="$build_dir/logs/$t.replay.log"
+    mkdir -p "$(dirname "$log")"
+    if STAGEFIT_FUZZ_V73=1 "$bin/$t" -timeout=10 -rss_limit_mb=2048 "${inputs[@]}" >"$log" 2>&1; then
+      printf '%-22s %5d inputs  ok\n' "$t" "${#inputs[@]}"
+    else
+      printf '%-22s %5d inputs  FAILED (log: %s)\n' "$t" "${#inputs[@]}" "$log"
+      tail -n 40 "$log"
+      status=1
+    fi
+  done
+  exit $status
+fi
+
+status=0
+printf '%-22s %8s %12s %8s  %s\n' target seconds executions exec/s result
+for t in "${targets[@]}"; do
+  work="$build_dir/corpus/$t"
+  artifacts="$build_dir/artifacts/$t/"
+  log="$build_dir/logs/$t.log"
+  [ "$keep_corpus" = 1 ] || rm -rf "$work"
+  mkdir -p "$work" "$artifacts" "$(dirname "$log")"
+  # Seeds, and the inputs that once crashed (they must keep passing under the sanitizers).
+  for d in tests/fuzz/corpus/$t tests/fuzz/regressions/$t; do
+    [ -d "$d" ] && cp -n "$d"/* "$work/" 2>/dev/null || true
+  done
+  options=(-max_total_time="$seconds" -max_len="${max_len[$t]}" -timeout=10 -rss_limit_mb=2048
+           -print_final_stats=1 -close_fd_mask=3 -artifact_prefix="$artifacts")
+  [ "$jobs" -gt 1 ] && options+=(-fork="$jobs" -ignore_crashes=0)
+  result=ok
+  "$bin/$t" "${options[@]}" "$work" >"$log" 2>&1 || result=FAILED
+  executions=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -n 1 | grep -o '[0-9]*$' || true)
+  [ -n "$executions" ] || executions=$(grep -o '#[0-9]*' "$log" | tail -n 1 | tr -d '#' || true)
+  rate=$(( ${executions:-0} / (seconds > 0 ? seconds : 1) ))
+  printf '%-22s %8s %12s %8s  %s\n' "$t" "$seconds" "${executions:-?}" "$rate" "$result"
+  if [ "$result" != ok ]; then
+    status=1
+    echo "---- $t: $log (crashing input in $artifacts)" >&2
+    grep -v '^#\|^INFO\|^MS:\|^NEW\|^REDUCE\|^pulse' "$log" | tail -n 60 >&2
+  fi
+done
+exit $status
