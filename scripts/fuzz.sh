@@ -52,17 +52,7 @@ fi
 
 packages=(clang libclang-rt-14-dev cmake ninja-build pkg-config libeigen3-dev libfftw3-dev libmatio-dev zlib1g-dev libhdf5-dev
           libtomlplusplus-dev libceres-dev libnlopt-cxx-dev libnlopt-dev nlohmann-json3-dev libcli11-dev)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "fuzz: installing ${missing[*]}" >&2
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+bash scripts/install-packages.sh fuzz "${packages[@]}"
 
 build_dir="${STAGEFIT_FUZZ_BUILD_DIR:-build-fuzz}"
 export LSAN_OPTIONS="suppressions=$PWD/tests/fuzz/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
