@@ -471,6 +471,7 @@ void RunSensitivity(const SensitivityFlags& f) {
     throw InputError((f.at.empty() ? std::string("--fmin") : f.at) + ": frequencies must be >= 0 Hz");
   }
   CheckNotAnInput(f.out, {f.at, f.common.model_path});
+  if (!f.common.report_path.empty()) CheckNotAnInput(f.common.report_path, {f.at, f.common.model_path});
   const Eigen::VectorXcd h = sd::CalcModelSensitivity(spec, f.source, f.output, frequency);
   const bool rotation = f.output.size() > 2 && f.output.compare(f.output.size() - 2, 1, "R") == 0;
   const bool ground = f.source.rfind("ground.", 0) == 0;
@@ -482,6 +483,12 @@ void RunSensitivity(const SensitivityFlags& f) {
   sd::WriteCsvTable(f.out, out);
   std::printf("wrote %s: %s -> %s at %d frequencies, |H| from %.3g to %.3g\n", f.out.c_str(), f.source.c_str(),
               f.output.c_str(), static_cast<int>(frequency.size()), h.cwiseAbs().minCoeff(), h.cwiseAbs().maxCoeff());
+  if (!f.common.report_path.empty()) {
+    WriteReport(f.common.report_path,
+                {{"source", f.source}, {"output", f.output}, {"unit", unit}, {"frequencies", frequency.size()},
+                 {"abs_min", h.cwiseAbs().minCoeff()}, {"abs_max", h.cwiseAbs().maxCoeff()}, {"out", f.out}},
+                {f.at, f.common.model_path});
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "cli_test_util.h"
 #include "stagefit/disturbance/record_io.h"
@@ -30,10 +31,17 @@ void WriteFlatPsd(const std::filesystem::path& path, const disturbance::CsvTable
 TEST(DisturbanceCommand, SensitivityFeedsTheForcePsdWithItsUnits) {
   const auto dir = TempDir("disturbance_force");
   auto r = RunStagefit("disturbance sensitivity --source ty.F.Dz --output X_rel.Dz --fmin 1 --fmax 100 --points 50 "
-                       "--out " + (dir / "s.csv").string());
+                       "--out " + (dir / "s.csv").string() + " --report " + (dir / "s.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const disturbance::CsvTable h = disturbance::ReadCsvTable(dir / "s.csv");
   EXPECT_EQ(h.units[h.FindColumn("abs")], "m/N");
+  std::ifstream report_stream(dir / "s.json");
+  const nlohmann::json report = nlohmann::json::parse(report_stream);
+  EXPECT_EQ(report.at("source"), "ty.F.Dz");
+  EXPECT_EQ(report.at("unit"), "m/N");
+  EXPECT_EQ(report.at("frequencies"), 50);
+  const double abs_max = h.Column("abs").maxCoeff();
+  EXPECT_NEAR(report.at("abs_max").get<double>(), abs_max, 1e-8 * abs_max);  // the CSV's nine digits
   constexpr double kMotionPsd = 1e-18;  // m^2/Hz
   WriteFlatPsd(dir / "psd.csv", h, "motion", "m^2/Hz", kMotionPsd);
 
