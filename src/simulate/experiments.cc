@@ -175,6 +175,45 @@ void Integrate(const model::AssembledModel& model, const std::vector<model::Inpu
   }
 }
 
+// Ground displacement inputs (one per ground DoF), each a signal synthesised from `psd`.
+void AddGroundMotion(const model::AssembledModel& model, const disturbance::PsdTable& psd,
+                     const disturbance::SynthesisOptions& synthesis, int n, std::mt19937_64& rng,
+                     std::vector<model::InputSpec>& inputs, std::vector<Eigen::VectorXd>& columns) {
+  for (const auto& in : model::GroundInputs(model)) {
+    inputs.push_back(in);
+    columns.push_back(disturbance::SynthesiseSignal(psd, synthesis, rng).head(n));
+  }
+}
+
+// The n x inputs matrix of the input signals. Without any disturbance, a single zero ground input
+// keeps the system well formed.
+Eigen::MatrixXd InputMatrix(const model::AssembledModel& model, int n, const std::vector<Eigen::VectorXd>& columns,
+                            std::vector<model::InputSpec>& inputs) {
+  if (inputs.empty()) {
+    inputs.push_back(model::GroundInputs(model).at(0));
+    return Eigen::MatrixXd::Zero(n, 1);
+  }
+  Eigen::MatrixXd u(n, static_cast<Eigen::Index>(columns.size()));
+  for (size_t c = 0; c < columns.size(); ++c) u.col(static_cast<Eigen::Index>(c)) = columns[c];
+  return u;
+}
+
+// Indices of the stages in kinematics::MicroStationStages().
+constexpr int kTranslationStage = 0;
+constexpr int kSpindleStage = 2;
+
+// The pose of the top platform at each sample when `stage` follows `setpoint` and the others rest.
+std::vector<kinematics::RigidTransform> TopPoses(int stage, const Eigen::VectorXd& setpoint) {
+  const auto stages = kinematics::MicroStationStages();
+  std::vector<kinematics::RigidTransform> X_W_top(setpoint.size());
+  std::vector<kinematics::StageMotion> motions(stages.size());
+  for (Eigen::Index k = 0; k < setpoint.size(); ++k) {
+    motions[stage].setpoint = setpoint(k);
+    X_W_top[k] = kinematics::CalcStackPoses(stages, motions).back();
+  }
+  return X_W_top;
+}
+
 int SampleCount(double duration_s, double sample_rate_hz) {
   CheckPositive(duration_s, "duration");
   CheckPositive(sample_rate_hz, "rate");
@@ -259,12 +298,7 @@ SimulationSummary RunTomography(const model::ModelSpec& input_spec, const Tomogr
   std::vector<Eigen::VectorXd> columns;
   std::mt19937_64 rng(o.seed);
   const disturbance::SynthesisOptions synthesis{o.duration_s, o.sample_rate_hz};
-  if (o.ground_motion) {
-    for (const auto& in : model::GroundInputs(model)) {
-      inputs.push_back(in);
-      columns.push_back(disturbance::SynthesiseSignal(o.ground_psd, synthesis, rng).head(n));
-    }
-  }
+  if (o.ground_motion) AddGroundMotion(model, o.ground_psd, synthesis, n, rng, inputs, columns);
   if (o.spindle_error) {
     std::vector<int> which;
     AddJointForceInputs(model, spindle, {Dof::kDx, Dof::kDy, Dof::kDz, Dof::kRx, Dof::kRy}, inputs, which);
@@ -275,23 +309,11 @@ SimulationSummary RunTomography(const model::ModelSpec& input_spec, const Tomogr
     summary.notes.push_back("spindle error motion imposed as a deformation of joint '" + o.roles.spindle_joint +
                             "' (forces K delta0 + C delta0' inside the joint), in fixed axes");
   }
-  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(columns.size()));
-  for (size_t c = 0; c < columns.size(); ++c) u.col(static_cast<Eigen::Index>(c)) = columns[c];
-  if (inputs.empty()) {  // no disturbance: a single zero ground input keeps the system well formed
-    inputs.push_back(model::GroundInputs(model).at(0));
-    u = Eigen::MatrixXd::Zero(n, 1);
-  }
+  const Eigen::MatrixXd u = InputMatrix(model, n, columns, inputs);
 
   summary.time_s = Eigen::VectorXd::LinSpaced(n, 0.0, (n - 1) * dt);
   summary.setpoint = o.speed_rad_s * summary.time_s;
-  const auto stages = kinematics::MicroStationStages();
-  std::vector<kinematics::RigidTransform> X_W_top(n);
-  std::vector<kinematics::StageMotion> motions(stages.size());
-  for (int k = 0; k < n; ++k) {
-    motions[2].setpoint = summary.setpoint(k);
-    X_W_top[k] = kinematics::CalcStackPoses(stages, motions).back();
-  }
-  Integrate(model, inputs, u, dt, X_W_top, Eigen::Vector3d(o.offset_m, 0, 0), summary);
+  Integrate(model, inputs, u, dt, TopPoses(kSpindleStage, summary.setpoint), Eigen::Vector3d(o.offset_m, 0, 0), summary);
 
   const Eigen::VectorXd x = summary.poi_pose.col(0), y = summary.poi_pose.col(1), z = summary.poi_pose.col(2);
   const Eigen::Vector4d circle = FitCircle(x, y, summary.setpoint);
@@ -339,12 +361,7 @@ SimulationSummary RunRaster(const model::ModelSpec& input_spec, const RasterOpti
   std::vector<Eigen::VectorXd> columns;
   std::mt19937_64 rng(o.seed);
   const disturbance::SynthesisOptions synthesis{o.duration_s, o.sample_rate_hz};
-  if (o.ground_motion) {
-    for (const auto& in : model::GroundInputs(model)) {
-      inputs.push_back(in);
-      columns.push_back(disturbance::SynthesiseSignal(o.ground_psd, synthesis, rng).head(n));
-    }
-  }
+  if (o.ground_motion) AddGroundMotion(model, o.ground_psd, synthesis, n, rng, inputs, columns);
   if (o.straightness_error) {
     Eigen::VectorXd position, vertical, lateral;
     if (o.straightness_position_m.size() > 0) {
@@ -383,21 +400,9 @@ SimulationSummary RunRaster(const model::ModelSpec& input_spec, const RasterOpti
     summary.notes.push_back("straightness imposed as a deformation of joint '" + o.roles.translation_joint +
                             "' Dz (vertical) and Dx (lateral): forces K delta0 + C delta0' inside the joint");
   }
-  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(columns.size()));
-  for (size_t c = 0; c < columns.size(); ++c) u.col(static_cast<Eigen::Index>(c)) = columns[c];
-  if (inputs.empty()) {
-    inputs.push_back(model::GroundInputs(model).at(0));
-    u = Eigen::MatrixXd::Zero(n, 1);
-  }
+  const Eigen::MatrixXd u = InputMatrix(model, n, columns, inputs);
 
-  const auto stages = kinematics::MicroStationStages();
-  std::vector<kinematics::RigidTransform> X_W_top(n);
-  std::vector<kinematics::StageMotion> motions(stages.size());
-  for (int k = 0; k < n; ++k) {
-    motions[0].setpoint = summary.setpoint(k);
-    X_W_top[k] = kinematics::CalcStackPoses(stages, motions).back();
-  }
-  Integrate(model, inputs, u, dt, X_W_top, Eigen::Vector3d(o.offset_m, 0, 0), summary);
+  Integrate(model, inputs, u, dt, TopPoses(kTranslationStage, summary.setpoint), Eigen::Vector3d(o.offset_m, 0, 0), summary);
 
   summary.error_names = {"vertical", "lateral", "scan"};
   summary.errors.resize(n, 3);
