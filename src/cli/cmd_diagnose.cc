@@ -1,3 +1,4 @@
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -87,6 +88,15 @@ void RegisterDiagnoseCommand(CLI::App& app) {
       for (const auto& m : summary.mispaired_modes) {
         modes.push_back({{"measured_hz", m.measured_hz}, {"model_hz", m.model_hz}, {"mac", m.mac}, {"dominant_dof", m.dominant_dof}});
       }
+      nlohmann::json unpaired_model = nlohmann::json::array(), rigid = nullptr;
+      for (const auto& [f, dof] : summary.unpaired_model) unpaired_model.push_back({{"model_hz", f}, {"dominant_dof", dof}});
+      if (std::isfinite(summary.rigid_residual_share)) {
+        nlohmann::json channels = nlohmann::json::array();
+        for (const auto& c : summary.inconsistent_channels) {
+          channels.push_back({{"channel", c.channel}, {"share", c.share}, {"band_hz", c.band_hz}});
+        }
+        rigid = {{"max_share", summary.rigid_residual_share}, {"least_consistent", channels}};
+      }
       nlohmann::json report = {{"command", "diagnose"},
                                {"error", summary.error_initial},
                                {"error_baseline", summary.error_baseline},
@@ -94,7 +104,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
                                {"verdict", summary.verdict},
                                {"candidates", candidates},
                                {"where", {{"bands", bands}, {"elements", elements}, {"mispaired_modes", modes},
-                                          {"unpaired_measured_hz", summary.unpaired_measured_hz}}},
+                                          {"unpaired_measured_hz", summary.unpaired_measured_hz},
+                                          {"unpaired_model", unpaired_model}, {"rigid_consistency", rigid}}},
                                {"time_s", summary.time_s}};
       WriteReport(o->common.report_path, report, inputs);
     }

@@ -3,6 +3,7 @@
 #include "command.h"
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/memory.h"
 
 namespace stagefit::cli {
 
@@ -17,6 +18,7 @@ int main(int argc, char** argv) {
   using namespace stagefit::cli;
   // An interrupted run (Ctrl-C) leaves the earlier outputs intact and no temporary file behind.
   stagefit::RemoveTemporaryFilesOnSignal();
+  stagefit::KeepFreedMemory();  // fits allocate and free large arrays per evaluation
   CLI::App app{"stagefit: models of precision positioning stages, tuned against vibration measurements"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "stagefit 0.1.0");

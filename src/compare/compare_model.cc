@@ -78,7 +78,7 @@ std::string FormatFrfTable(const Comparison& comparison, const ComparisonResult&
   for (const auto& idx : comparison.used_elements()) {
     const std::string name = comparison.ElementName(idx);
     for (int k = 0; k < comparison.num_frequencies(); ++k) {
-      const std::complex<double> a = comparison.measured()[k](idx.output, idx.input);
+      const std::complex<double> a = result.measured[k](idx.output, idx.input);
       const std::complex<double> b = result.model[k](idx.output, idx.input);
       out << Number(comparison.frequency_hz()(k)) << ',' << name << ',' << comparison.output_names()[idx.output]
           << ',' << comparison.input_names()[idx.input] << ',' << Number(a.real()) << ',' << Number(a.imag())

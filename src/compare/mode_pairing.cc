@@ -143,7 +143,9 @@ ModePairing PairModes(const Comparison& comparison, const std::vector<Eigen::Mat
   }
   ModePairing pairing;
   const double L = options.rotation_length_m;
-  pairing.measured = IdentifyModes(comparison.frequency_hz(), Scaled(comparison, comparison.measured(), L), options);
+  std::vector<Eigen::MatrixXcd> corrected;
+  pairing.measured =
+      IdentifyModes(comparison.frequency_hz(), Scaled(comparison, comparison.MeasuredFor(spec, &corrected), L), options);
   pairing.model = IdentifyModes(comparison.frequency_hz(), Scaled(comparison, model_frf, L), options);
 
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");

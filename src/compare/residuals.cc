@@ -58,6 +58,23 @@ double SafeLogAbs(std::complex<double> z) {
   return std::log(std::max(std::abs(z), std::numeric_limits<double>::min()));
 }
 
+/// Moves and turns the channels named by `corrections` (a channel name names one channel of a
+/// measurement, output or input); returns whether any channel was corrected.
+template <typename Channel>
+bool ApplyGeometryCorrections(const std::vector<model::GeometryCorrection>& corrections, std::vector<Channel>* channels) {
+  bool any = false;
+  for (const auto& g : corrections) {
+    const Eigen::Matrix3d R = kinematics::RotationFromEuler({g.rotation_rad(0), g.rotation_rad(1), g.rotation_rad(2)});
+    for (auto& ch : *channels) {
+      if (ch.name != g.channel) continue;
+      ch.position_W += g.offset_W;
+      ch.direction_W = R * ch.direction_W;
+      any = true;
+    }
+  }
+  return any;
+}
+
 double SnrFromCoherence(double gamma2) {
   if (gamma2 <= 0.0) return 0.0;
   if (gamma2 >= 1.0) return std::numeric_limits<double>::infinity();
@@ -130,6 +147,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
                          : std::numeric_limits<double>::infinity();
   };
   const double cap = options.coherence_weight_cap;
+  c.weight_cap_ = cap;
   c.weights_.assign(nf, Eigen::MatrixXd());
   c.measured_.assign(nf, Eigen::MatrixXcd());
 
@@ -153,6 +171,13 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       P = measurement::PseudoInverse(measurement::CalcSensorJacobian(measurement.outputs, c.p_WXo_));
       Q = measurement::PseudoInverse(measurement::CalcImpactJacobian(measurement.inputs, c.p_WXo_).transpose());
       for (int k = 0; k < nf; ++k) c.measured_[k] = projection.frf[rows[k]];
+      c.raw_outputs_ = measurement.outputs;
+      c.raw_inputs_ = measurement.inputs;
+      c.raw_measured_.resize(nf);
+      for (int k = 0; k < nf; ++k) {
+        c.raw_measured_[k] = measurement.frf[rows[k]] *
+                             measurement::ConversionFactor(c.frequency_hz_(k), measurement.quantity, c.quantity_);
+      }
     } else {
       for (int k = 0; k < nf; ++k) c.measured_[k] = measurement.frf[rows[k]];
     }
@@ -179,6 +204,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         } else {
           var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
         }
+        if (!projected) c.noise_sigma_.push_back(var_X.cwiseSqrt());
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
             const double sigma = std::sqrt(var_X(a, b));
@@ -320,23 +346,64 @@ model::SecondOrderSystem Comparison::BuildModelSystem(const model::AssembledMode
   // geometry corrected by the model's [[geometry_correction]] entries (the sensor-geometry effect).
   std::vector<model::InputSpec> inputs = model_inputs_;
   std::vector<model::OutputSpec> outputs = model_outputs_;
-  for (const auto& g : model.spec().geometry_corrections) {
-    const Eigen::Matrix3d R = kinematics::RotationFromEuler({g.rotation_rad(0), g.rotation_rad(1), g.rotation_rad(2)});
-    if (g.is_impact) {
-      for (auto& in : inputs) {
-        if (in.name != g.channel) continue;
-        in.position_W += g.offset_W;
-        in.direction_W = R * in.direction_W;
-      }
-    } else {
-      for (auto& out : outputs) {
-        if (out.name != g.channel) continue;
-        out.position_W += g.offset_W;
-        out.direction_W = R * out.direction_W;
-      }
-    }
-  }
+  ApplyGeometryCorrections(model.spec().geometry_corrections, &inputs);
+  ApplyGeometryCorrections(model.spec().geometry_corrections, &outputs);
   return model::BuildSystem(model, inputs, outputs);
+}
+
+const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelSpec& spec,
+                                                             std::vector<Eigen::MatrixXcd>* storage) const {
+  if (space_ != ComparisonSpace::kCompliance || raw_measured_.empty() || spec.geometry_corrections.empty()) {
+    return measured_;
+  }
+  std::vector<measurement::ChannelGeometry> outputs = raw_outputs_, inputs = raw_inputs_;
+  const bool corrected_outputs = ApplyGeometryCorrections(spec.geometry_corrections, &outputs);
+  const bool corrected_inputs = ApplyGeometryCorrections(spec.geometry_corrections, &inputs);
+  if (!corrected_outputs && !corrected_inputs) return measured_;
+  const std::string what = "comparison with '" + source_ + "' under the model's geometry corrections";
+  const Eigen::MatrixXd J_a = measurement::CalcSensorJacobian(outputs, p_WXo_);
+  const Eigen::MatrixXd J_F = measurement::CalcImpactJacobian(inputs, p_WXo_);
+  measurement::CheckObservable(J_a, what + ": sensors");
+  measurement::CheckObservable(J_F, what + ": impacts");
+  const Eigen::MatrixXcd P = measurement::PseudoInverse(J_a).cast<std::complex<double>>();
+  const Eigen::MatrixXcd Q = measurement::PseudoInverse(J_F.transpose()).cast<std::complex<double>>();
+  storage->resize(raw_measured_.size());
+  for (size_t k = 0; k < raw_measured_.size(); ++k) (*storage)[k] = P * raw_measured_[k] * Q;
+  return *storage;
+}
+
+void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const {
+  side->values = &MeasuredFor(spec, &side->storage);
+  side->weights.resize(points_.size());
+  if (side->values == &measured_ || noise_sigma_.empty()) {
+    for (size_t p = 0; p < points_.size(); ++p) side->weights[p] = points_[p].weight;
+    side->norm = weight_norm_;
+    return;
+  }
+  // Re-projected: each point's SNR again (header), as Create() weighs the declared projection.
+  double sum_w2 = 0.0;
+  for (size_t p = 0; p < points_.size(); ++p) {
+    const Point& pt = points_[p];
+    const ElementIndex idx = used_elements_[pt.element];
+    const double sigma = noise_sigma_[pt.frequency](idx.output, idx.input);
+    const double magnitude = std::abs((*side->values)[pt.frequency](idx.output, idx.input));
+    const double w = sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
+    side->weights[p] = w;
+    sum_w2 += w * w;
+  }
+  side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
+}
+
+std::vector<std::string> Comparison::CorrectableChannels() const {
+  std::vector<std::string> names;
+  if (space_ == ComparisonSpace::kRaw) {
+    names = output_names_;
+    names.insert(names.end(), input_names_.begin(), input_names_.end());
+  } else {
+    for (const auto& ch : raw_outputs_) names.push_back(ch.name);
+    for (const auto& ch : raw_inputs_) names.push_back(ch.name);
+  }
+  return names;
 }
 
 std::vector<Eigen::MatrixXcd> Comparison::EvaluateModel(const model::ModelSpec& spec) const {
@@ -348,14 +415,15 @@ std::vector<Eigen::MatrixXcd> Comparison::EvaluateModel(const model::ModelSpec& 
   return out;
 }
 
-void Comparison::CalcLogErrors(const Eigen::MatrixXcd& model_values, Eigen::VectorXcd* e) const {
+void Comparison::CalcLogErrors(const Eigen::MatrixXcd& model_values, const std::vector<Eigen::MatrixXcd>& measured,
+                               Eigen::VectorXcd* e) const {
   e->resize(num_points());
   const int no = num_outputs();
   for (int p = 0; p < num_points(); ++p) {
     const Point& pt = points_[p];
     const ElementIndex idx = used_elements_[pt.element];
     const std::complex<double> h_model = model_values(pt.frequency, idx.output + no * idx.input);
-    const std::complex<double> h_meas = measured_[pt.frequency](idx.output, idx.input);
+    const std::complex<double> h_meas = measured[pt.frequency](idx.output, idx.input);
     const std::complex<double> value = std::log(h_model / h_meas);
     if (!std::isfinite(value.real()) || !std::isfinite(value.imag())) {
       std::ostringstream msg;
@@ -400,11 +468,13 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
   } else {
     evaluator.Evaluate(frequency_hz_, quantity, &frf.frf);
   }
+  MeasuredSide side;
+  SetMeasuredSide(spec, &side);
   Eigen::VectorXcd e;
-  CalcLogErrors(frf.frf.values, &e);
+  CalcLogErrors(frf.frf.values, *side.values, &e);
   r->resize(2 * np);
   for (int p = 0; p < np; ++p) {
-    const std::complex<double> we = points_[p].weight * e(p) / weight_norm_;
+    const std::complex<double> we = side.weights[p] * e(p) / side.norm;
     (*r)(p) = we.real();
     (*r)(np + p) = we.imag();
   }
@@ -419,7 +489,7 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
       const ElementIndex idx = used_elements_[pt.element];
       const int column = idx.output + no * idx.input;
       const std::complex<double> de = dH(pt.frequency, column) / frf.frf.values(pt.frequency, column);
-      const std::complex<double> wde = pt.weight * de / weight_norm_;
+      const std::complex<double> wde = side.weights[p] * de / side.norm;
       (*J)(p, k) = wde.real();
       (*J)(np + p, k) = wde.imag();
     }
@@ -435,8 +505,11 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
   for (int k = 0; k < nf; ++k) {
     for (int i = 0; i < num_inputs(); ++i) values.row(k).segment(no * i, no) = result.model[k].col(i).transpose();
   }
+  MeasuredSide side;
+  SetMeasuredSide(spec, &side);
+  result.measured = *side.values;
   Eigen::VectorXcd e;
-  CalcLogErrors(values, &e);
+  CalcLogErrors(values, result.measured, &e);
 
   const auto bands = measurement::MakeFractionalOctaveBands(frequency_hz_(0), frequency_hz_(nf - 1),
                                                             bands_per_octave_);
@@ -459,7 +532,7 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     const Point& pt = points_[p];
     const int b = band_of[pt.frequency];
     STAGEFIT_ASSERT(b >= 0, "frequency outside every band");
-    const double w2 = pt.weight * pt.weight;
+    const double w2 = side.weights[p] * side.weights[p];
     num(pt.element, b) += w2 * std::norm(e(p));
     den(pt.element, b) += w2;
     count(pt.element, b) += 1;
@@ -471,7 +544,7 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
   // fit report of the same model agree to the last bit (the sums above only apportion it).
   Eigen::VectorXd r(2 * num_points());
   for (int p = 0; p < num_points(); ++p) {
-    const std::complex<double> we = points_[p].weight * e(p) / weight_norm_;
+    const std::complex<double> we = side.weights[p] * e(p) / side.norm;
     r(p) = we.real();
     r(num_points() + p) = we.imag();
   }

@@ -725,4 +725,53 @@ FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<Parameter
   return summary;
 }
 
+FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
+                           const FitOptions& options) {
+  const auto t0 = Clock::now();
+  std::vector<ParameterSpec> start = parameters;
+  FitSummary summary = Solve(problem, start, options);
+  const double initial_cost = summary.initial_cost, initial_error = summary.initial_error;
+  FitOptions restart_options = options;
+  restart_options.num_starts = 1;
+  int evaluations = 0;
+  Eigen::VectorXd r;
+  for (int round = 0; round < options.max_probe_rounds && summary.status != FitStatus::kFailed; ++round) {
+    const Eigen::VectorXd p = summary.values();
+    double best_cost = summary.final_cost * (1.0 - options.probe_min_improvement);
+    Eigen::VectorXd best;
+    for (size_t i = 0; i < start.size(); ++i) {
+      const ParameterSpec& s = start[i];
+      if (!s.log_scale) continue;
+      for (const double factor : options.probe_factors) {
+        Eigen::VectorXd q = p;
+        q[i] = std::clamp(p[i] * factor, s.lower, s.upper);
+        if (q[i] == p[i]) continue;
+        ++evaluations;
+        if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) continue;
+        const double cost = 0.5 * r.squaredNorm();
+        if (cost < best_cost) {
+          best_cost = cost;
+          best = q;
+        }
+      }
+    }
+    if (best.size() == 0) break;
+    // exp(ln p) of a parameter at its bound can land one rounding step outside it: clip every value.
+    for (size_t i = 0; i < start.size(); ++i) start[i].initial = std::clamp(best[i], start[i].lower, start[i].upper);
+    FitSummary restarted = Solve(problem, start, restart_options);
+    if (!(restarted.final_cost < summary.final_cost)) {
+      evaluations += restarted.num_evaluations;
+      break;
+    }
+    restarted.num_evaluations += summary.num_evaluations;
+    summary = std::move(restarted);
+  }
+  summary.num_evaluations += evaluations;
+  for (size_t i = 0; i < parameters.size(); ++i) summary.parameters[i].initial = parameters[i].initial;
+  summary.initial_cost = initial_cost;
+  summary.initial_error = initial_error;
+  summary.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return summary;
+}
+
 }  // namespace stagefit::fit

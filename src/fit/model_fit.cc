@@ -24,48 +24,6 @@ std::string RuleName(const BoundRule& rule) {
   return (rule.source.empty() ? std::string("bounds") : rule.source + ": bounds") + " '" + rule.pattern + "'";
 }
 
-// FitOptions::probe_factors: from the kept optimum, try each log-scale parameter times each factor;
-// restart from the best probe that lowers the cost, keep the restarted fit when it ends lower.
-void ProbeBasins(const ModelFitProblem& problem, const FitOptions& options, std::vector<ParameterSpec>* start,
-                 FitSummary* summary, int* evaluations) {
-  FitOptions restart_options = options;
-  restart_options.num_starts = 1;
-  Eigen::VectorXd r;
-  for (int round = 0; round < options.max_probe_rounds && summary->status != FitStatus::kFailed; ++round) {
-    const Eigen::VectorXd p = summary->values();
-    double best_cost = summary->final_cost * (1.0 - options.probe_min_improvement);
-    Eigen::VectorXd best;
-    for (size_t i = 0; i < start->size(); ++i) {
-      const ParameterSpec& s = (*start)[i];
-      if (!s.log_scale) continue;
-      for (const double factor : options.probe_factors) {
-        Eigen::VectorXd q = p;
-        q[i] = std::clamp(p[i] * factor, s.lower, s.upper);
-        if (q[i] == p[i]) continue;
-        ++*evaluations;
-        if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) continue;
-        const double cost = 0.5 * r.squaredNorm();
-        if (cost < best_cost) {
-          best_cost = cost;
-          best = q;
-        }
-      }
-    }
-    if (best.size() == 0) break;
-    // exp(ln p) of a parameter at its bound can land one rounding step outside it: clip every value.
-    for (size_t i = 0; i < start->size(); ++i) {
-      (*start)[i].initial = std::clamp(best[i], (*start)[i].lower, (*start)[i].upper);
-    }
-    FitSummary restarted = Solve(problem, *start, restart_options);
-    if (!(restarted.final_cost < summary->final_cost)) {
-      *evaluations += restarted.num_evaluations;
-      break;
-    }
-    restarted.num_evaluations += summary->num_evaluations;
-    *summary = std::move(restarted);
-  }
-}
-
 }  // namespace
 
 bool MatchesPattern(const std::string& name, const std::string& pattern) {
@@ -160,13 +118,8 @@ FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& compariso
   const std::vector<ParameterSpec> specs = MakeParameterSpecs(spec, parameters, bounds);
   const double error_before = comparison.Error(spec);
   const ModelFitProblem problem(spec, comparison, parameters);
-  std::vector<ParameterSpec> start = specs;
-  int probe_evaluations = 0;
-  FitSummary summary = Solve(problem, start, options);
-  ProbeBasins(problem, options, &start, &summary, &probe_evaluations);
-  summary.num_evaluations += probe_evaluations;
+  FitSummary summary = SolveWithProbes(problem, specs, options);
   summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  for (size_t i = 0; i < specs.size(); ++i) summary.parameters[i].initial = specs[i].initial;
   for (size_t i = 0; i < parameters.size(); ++i) model::SetParameter(spec, parameters[i], summary.parameters[i].value);
   summary.initial_error = error_before;
   summary.initial_cost = 0.5 * error_before * error_before;

@@ -180,7 +180,9 @@ void AddNoise(FrfData& data, const NoiseOptions& options) {
         const double magnitude = std::abs(h);
         const double sigma_rel = options.relative * magnitude, sigma_abs = options.absolute * rms(o, i);
         const double variance = sigma_rel * sigma_rel + sigma_abs * sigma_abs;
-        data.coherence[f](o, i) = magnitude * magnitude / (magnitude * magnitude + variance);
+        // An element the model makes exactly zero (a symmetry) gets no noise: its zero is exact.
+        const double power = magnitude * magnitude + variance;
+        data.coherence[f](o, i) = power > 0.0 ? magnitude * magnitude / power : 1.0;
         h += sigma_rel * Complex(g(rng), g(rng)) + sigma_abs * Complex(g(rng), g(rng));
       }
     }
@@ -228,6 +230,148 @@ Eigen::VectorXd LogFrequencies(double fmin_hz, double fmax_hz, int count) {
   return f;
 }
 
+/// Draws one hidden effect of kind `kind` (a location and a magnitude) and applies it to `truth` and,
+/// for a sensor error, to `true_sensors` (the truth then also carries the correction that undoes it,
+/// so that its error against the declared geometry is the noise floor).
+template <typename Rng>
+HiddenEffect ApplyHiddenEffect(const std::string& kind, Rng& rng, model::ModelSpec& truth,
+                               std::vector<ChannelGeometry>& true_sensors) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * u(rng); };
+  auto pick = [&](int count) { return static_cast<int>(std::min<double>(count - 1, std::floor(u(rng) * count))); };
+  char text[256];
+  HiddenEffect e;
+  e.name = kind;
+if (e.name == "payload") {
+    // A separate body rigidly fixed (all six DoF imposed) on the hexapod or the spindle.
+    const bool on_hexapod = u(rng) < 0.6;
+    e.location = on_hexapod ? "hexapod" : "rz";
+    const auto& host = truth.bodies[model::FindBody(truth, e.location)];
+    const double mass = on_hexapod ? uniform(4, 10) : uniform(30, 70);
+    const double dz = on_hexapod ? uniform(0.04, 0.15) : uniform(0.0, 0.1);
+    model::BodySpec b;
+    b.name = "hidden_payload";
+    b.mass_kg = mass;
+    b.com_W = host.com_W + Eigen::Vector3d(0, 0, dz);
+    b.inertia_com_W = Eigen::Matrix3d::Identity() * 1e-6 * mass;
+    model::JointSpec j;
+    j.name = "hidden_payload";
+    j.parent = e.location;
+    j.child = b.name;
+    j.origin_W = b.com_W;
+    j.imposed = {true, true, true, true, true, true};
+    truth.bodies.push_back(b);
+    truth.joints.push_back(j);
+    std::snprintf(text, sizeof text, "%.1f kg rigidly fixed %.0f mm above the CoM of %s", mass, 1e3 * dz, e.location.c_str());
+  } else if (e.name == "extra-body") {
+    e.location = u(rng) < 0.5 ? "hexapod" : "rz";
+    const auto& host = truth.bodies[model::FindBody(truth, e.location)];
+    const double mass = e.location == "hexapod" ? uniform(1.5, 4) : uniform(10, 25);
+    const double f = uniform(60, 300), w = 2 * M_PI * f;
+    model::BodySpec b;
+    b.name = "hidden_body";
+    b.mass_kg = mass;
+    b.com_W = host.com_W + Eigen::Vector3d(0, 0, 0.05);
+    b.inertia_com_W = mass * 0.0025 * Eigen::Matrix3d::Identity();
+    model::JointSpec j;
+    j.name = "hidden_body";
+    j.parent = e.location;
+    j.child = b.name;
+    j.origin_W = b.com_W;
+    for (int i = 0; i < 6; ++i) {
+      const double inertia = i < 3 ? mass : mass * 0.0025;
+      j.stiffness[i] = inertia * w * w * (i < 3 ? 1.0 : 1.5);
+      j.damping[i] = 2 * 0.02 * std::sqrt(j.stiffness[i] * inertia);
+    }
+    truth.bodies.push_back(b);
+    truth.joints.push_back(j);
+    std::snprintf(text, sizeof text, "a %.1f kg body on %s with a local mode at %.0f Hz", mass, e.location.c_str(), f);
+  } else if (e.name == "servo-stiffness") {
+    const char* where[] = {"ty.Dy", "ry.Ry", "rz.Rz"};
+    int w = pick(3);
+    e.location = where[w];
+    model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location.substr(0, 2))];
+    const int d = w == 0 ? 1 : w == 1 ? 4 : 5;
+    const model::BodySpec& child = truth.bodies[model::FindBody(truth, j.child)];
+    // A drive stiffness meant to put a new mode of the stage roughly between 40 and 250 Hz: the
+    // inertia is a rough figure for what moves on that axis (the stage and everything above it).
+    const double f = uniform(40, 250), omega = 2 * M_PI * f;
+    const double inertia = d < 3 ? 1000.0 : child.inertia_com_W(d - 3, d - 3) * 20;
+    j.imposed[d] = false;
+    j.stiffness[d] = inertia * omega * omega;
+    j.damping[d] = 2 * 0.03 * std::sqrt(j.stiffness[d] * inertia);
+    std::snprintf(text, sizeof text, "%s is a spring of %.3g instead of a rigid constraint", e.location.c_str(), j.stiffness[d]);
+  } else if (e.name == "coupled-stiffness") {
+    const bool xr = u(rng) < 0.5;
+    e.location = xr ? "hexapod.Dx-Ry" : "hexapod.Dy-Rx";
+    model::JointSpec& j = truth.joints[model::FindJoint(truth, "hexapod")];
+    const Dof a = xr ? Dof::kDx : Dof::kDy, b = xr ? Dof::kRy : Dof::kRx;
+    const double rho = (u(rng) < 0.5 ? -1 : 1) * uniform(0.4, 0.8);
+    const double k = rho * std::sqrt(j.stiffness[index(a)] * j.stiffness[index(b)]);
+    j.couplings.push_back({a, b, k, 0.0});
+    std::snprintf(text, sizeof text, "a coupling term %.3g N/rad between %s (correlation %.2f)", k, e.location.c_str(), rho);
+  } else if (e.name == "structural-damping") {
+    e.location = u(rng) < 0.5 ? "hexapod" : "rz";
+    model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location)];
+    const double eta = uniform(0.04, 0.1);
+    for (int i = 0; i < 6; ++i) {
+      j.loss_factor[i] = j.imposed[i] ? 0.0 : eta;
+      j.damping[i] = 0.0;
+    }
+    std::snprintf(text, sizeof text, "hysteretic loss factor %.3f in joint %s instead of viscous damping", eta, e.location.c_str());
+  } else if (e.name == "joint-offset") {
+    e.location = u(rng) < 0.5 ? "hexapod" : "rz";
+    model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location)];
+    const double dz = (u(rng) < 0.5 ? -1 : 1) * uniform(0.06, 0.15);
+    j.origin_W.z() += dz;
+    std::snprintf(text, sizeof text, "the stiffness centre of %s is %.0f mm from where assumed", e.location.c_str(), 1e3 * dz);
+  } else if (e.name == "sensor-geometry") {
+    int s = pick(12);
+    e.location = true_sensors[s].name;
+    const double angle = (u(rng) < 0.5 ? -1 : 1) * uniform(10, 25) * M_PI / 180;
+    const int axis = (s % 3 + 1 + pick(2)) % 3;  // rotate about an axis other than its own
+    Eigen::Vector3d euler = Eigen::Vector3d::Zero();
+    euler(axis) = angle;
+    true_sensors[s].direction_W =
+        kinematics::RotationFromEuler({euler(0), euler(1), euler(2)}) * true_sensors[s].direction_W;
+    // The truth model knows where the channel really points (as a fitted sensor-geometry effect would).
+    model::GeometryCorrection g;
+    g.channel = e.location;
+    g.rotation_rad = euler;
+    truth.geometry_corrections.push_back(g);
+    std::snprintf(text, sizeof text, "accelerometer channel %s is rotated by %.0f deg", e.location.c_str(), angle * 180 / M_PI);
+  } else {
+    e.location = "acquisition";
+    const double tau = uniform(0.3e-3, 1.0e-3);
+    truth.acquisition_delay_s += tau;
+    std::snprintf(text, sizeof text, "a %.2f ms delay in the acquisition chain", tau * 1e3);
+  }
+  e.description = text;
+  return e;
+}
+
+/// How much `with` differs from `without` against the measurement noise (AddNoise's model with
+/// relative = absolute = `noise`): the RMS over every element and frequency of |H_with - H_without| / sigma.
+double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, double noise) {
+  const int nf = without.num_frequencies(), no = without.num_outputs(), ni = without.num_inputs();
+  Eigen::MatrixXd rms = Eigen::MatrixXd::Zero(no, ni);
+  for (int f = 0; f < nf; ++f) rms += without.frf[f].cwiseAbs2();
+  rms = (rms / nf).cwiseSqrt();
+  // An element the symmetric model makes exactly zero gets no noise from AddNoise; a real test would
+  // still show its channel's noise floor: 1e-3 of the strongest element's RMS.
+  const double floor2 = 1e-6 * rms.maxCoeff() * rms.maxCoeff();
+  double sum = 0.0;
+  for (int f = 0; f < nf; ++f) {
+    for (int o = 0; o < no; ++o) {
+      for (int i = 0; i < ni; ++i) {
+        const double sigma2 = noise * noise * (std::norm(without.frf[f](o, i)) + rms(o, i) * rms(o, i) + floor2);
+        sum += std::norm(with.frf[f](o, i) - without.frf[f](o, i)) / sigma2;
+      }
+    }
+  }
+  return std::sqrt(sum / (static_cast<double>(nf) * no * ni));
+}
+
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -259,117 +403,31 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
     int k = pick(8);
     if (std::find(chosen.begin(), chosen.end(), k) == chosen.end()) chosen.push_back(k);
   }
-  char text[256];
+  const Eigen::VectorXd f = LogFrequencies(options.fmin_hz, options.fmax_hz, options.num_frequencies);
+  const double noise_level = uniform(options.noise_min, options.noise_max);
+  // Each effect is drawn again (location and magnitude) until it matters: alone, it changes the data
+  // by at least min_visibility noise standard deviations (RMS over all points).
+  const FrfData without = CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
   for (int k : chosen) {
     HiddenEffect e;
-    e.name = kinds[k];
-    if (e.name == "payload") {
-      // A separate body rigidly fixed (all six DoF imposed) on the hexapod or the spindle.
-      const bool on_hexapod = u(rng) < 0.6;
-      e.location = on_hexapod ? "hexapod" : "rz";
-      const auto& host = truth.bodies[model::FindBody(truth, e.location)];
-      const double mass = on_hexapod ? uniform(4, 10) : uniform(30, 70);
-      const double dz = on_hexapod ? uniform(0.04, 0.15) : uniform(0.0, 0.1);
-      model::BodySpec b;
-      b.name = "hidden_payload";
-      b.mass_kg = mass;
-      b.com_W = host.com_W + Eigen::Vector3d(0, 0, dz);
-      b.inertia_com_W = Eigen::Matrix3d::Identity() * 1e-6 * mass;
-      model::JointSpec j;
-      j.name = "hidden_payload";
-      j.parent = e.location;
-      j.child = b.name;
-      j.origin_W = b.com_W;
-      j.imposed = {true, true, true, true, true, true};
-      truth.bodies.push_back(b);
-      truth.joints.push_back(j);
-      std::snprintf(text, sizeof text, "%.1f kg rigidly fixed %.0f mm above the CoM of %s", mass, 1e3 * dz, e.location.c_str());
-    } else if (e.name == "extra-body") {
-      e.location = u(rng) < 0.5 ? "hexapod" : "rz";
-      const auto& host = truth.bodies[model::FindBody(truth, e.location)];
-      const double mass = e.location == "hexapod" ? uniform(1.5, 4) : uniform(10, 25);
-      const double f = uniform(60, 300), w = 2 * M_PI * f;
-      model::BodySpec b;
-      b.name = "hidden_body";
-      b.mass_kg = mass;
-      b.com_W = host.com_W + Eigen::Vector3d(0, 0, 0.05);
-      b.inertia_com_W = mass * 0.0025 * Eigen::Matrix3d::Identity();
-      model::JointSpec j;
-      j.name = "hidden_body";
-      j.parent = e.location;
-      j.child = b.name;
-      j.origin_W = b.com_W;
-      for (int i = 0; i < 6; ++i) {
-        const double inertia = i < 3 ? mass : mass * 0.0025;
-        j.stiffness[i] = inertia * w * w * (i < 3 ? 1.0 : 1.5);
-        j.damping[i] = 2 * 0.02 * std::sqrt(j.stiffness[i] * inertia);
+    for (int attempt = 0; attempt < options.max_draws; ++attempt) {
+      model::ModelSpec trial = truth;
+      std::vector<ChannelGeometry> trial_sensors = true_sensors;
+      e = ApplyHiddenEffect(kinds[k], rng, trial, trial_sensors);
+      const FrfData with = CalcBruteForceFrf(trial, trial_sensors, impacts, f, FrfQuantity::kAccelerance);
+      e.visibility = NoiseNormalisedDifference(with, without, noise_level);
+      if (e.visibility >= options.min_visibility || attempt + 1 == options.max_draws) {
+        truth = trial;
+        true_sensors = trial_sensors;
+        break;
       }
-      truth.bodies.push_back(b);
-      truth.joints.push_back(j);
-      std::snprintf(text, sizeof text, "a %.1f kg body on %s with a local mode at %.0f Hz", mass, e.location.c_str(), f);
-    } else if (e.name == "servo-stiffness") {
-      const char* where[] = {"ty.Dy", "ry.Ry", "rz.Rz"};
-      int w = pick(3);
-      e.location = where[w];
-      model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location.substr(0, 2))];
-      const int d = w == 0 ? 1 : w == 1 ? 4 : 5;
-      const model::BodySpec& child = truth.bodies[model::FindBody(truth, j.child)];
-      // A drive stiffness meant to put a new mode of the stage roughly between 40 and 250 Hz: the
-      // inertia is a rough figure for what moves on that axis (the stage and everything above it).
-      const double f = uniform(40, 250), omega = 2 * M_PI * f;
-      const double inertia = d < 3 ? 1000.0 : child.inertia_com_W(d - 3, d - 3) * 20;
-      j.imposed[d] = false;
-      j.stiffness[d] = inertia * omega * omega;
-      j.damping[d] = 2 * 0.03 * std::sqrt(j.stiffness[d] * inertia);
-      std::snprintf(text, sizeof text, "%s is a spring of %.3g instead of a rigid constraint", e.location.c_str(), j.stiffness[d]);
-    } else if (e.name == "coupled-stiffness") {
-      const bool xr = u(rng) < 0.5;
-      e.location = xr ? "hexapod.Dx-Ry" : "hexapod.Dy-Rx";
-      model::JointSpec& j = truth.joints[model::FindJoint(truth, "hexapod")];
-      const Dof a = xr ? Dof::kDx : Dof::kDy, b = xr ? Dof::kRy : Dof::kRx;
-      const double rho = (u(rng) < 0.5 ? -1 : 1) * uniform(0.4, 0.8);
-      const double k = rho * std::sqrt(j.stiffness[index(a)] * j.stiffness[index(b)]);
-      j.couplings.push_back({a, b, k, 0.0});
-      std::snprintf(text, sizeof text, "a coupling term %.3g N/rad between %s (correlation %.2f)", k, e.location.c_str(), rho);
-    } else if (e.name == "structural-damping") {
-      e.location = u(rng) < 0.5 ? "hexapod" : "rz";
-      model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location)];
-      const double eta = uniform(0.04, 0.1);
-      for (int i = 0; i < 6; ++i) {
-        j.loss_factor[i] = j.imposed[i] ? 0.0 : eta;
-        j.damping[i] = 0.0;
-      }
-      std::snprintf(text, sizeof text, "hysteretic loss factor %.3f in joint %s instead of viscous damping", eta, e.location.c_str());
-    } else if (e.name == "joint-offset") {
-      e.location = u(rng) < 0.5 ? "hexapod" : "rz";
-      model::JointSpec& j = truth.joints[model::FindJoint(truth, e.location)];
-      const double dz = (u(rng) < 0.5 ? -1 : 1) * uniform(0.06, 0.15);
-      j.origin_W.z() += dz;
-      std::snprintf(text, sizeof text, "the stiffness centre of %s is %.0f mm from where assumed", e.location.c_str(), 1e3 * dz);
-    } else if (e.name == "sensor-geometry") {
-      int s = pick(12);
-      e.location = true_sensors[s].name;
-      const double angle = (u(rng) < 0.5 ? -1 : 1) * uniform(10, 25) * M_PI / 180;
-      const int axis = (s % 3 + 1 + pick(2)) % 3;  // rotate about an axis other than its own
-      Eigen::Vector3d euler = Eigen::Vector3d::Zero();
-      euler(axis) = angle;
-      true_sensors[s].direction_W =
-          kinematics::RotationFromEuler({euler(0), euler(1), euler(2)}) * true_sensors[s].direction_W;
-      std::snprintf(text, sizeof text, "accelerometer channel %s is rotated by %.0f deg", e.location.c_str(), angle * 180 / M_PI);
-    } else {
-      e.location = "acquisition";
-      const double tau = uniform(0.3e-3, 1.0e-3);
-      truth.acquisition_delay_s += tau;
-      std::snprintf(text, sizeof text, "a %.2f ms delay in the acquisition chain", tau * 1e3);
     }
-    e.description = text;
     c.effects.push_back(e);
   }
-  const Eigen::VectorXd f = LogFrequencies(options.fmin_hz, options.fmax_hz, options.num_frequencies);
   c.measurement = CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
   c.measurement.outputs = sensors;  // the declared (nominal) geometry
   NoiseOptions noise;
-  noise.relative = noise.absolute = uniform(options.noise_min, options.noise_max);
+  noise.relative = noise.absolute = noise_level;
   noise.seed = seed * 7919 + 1;
   AddNoise(c.measurement, noise);
   c.measurement.frame_origin_W = p_WXo;

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "fit_test_util.h"
+#include "stagefit/common/memory.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/model/model_file.h"
@@ -117,6 +118,7 @@ struct Tally {
 }  // namespace
 
 int main(int argc, char** argv) {
+  stagefit::KeepFreedMemory();  // as the stagefit program does
   int trials = 20, frequencies = 1000, compare_trials = 5;
   std::string params = "*.k.*";
   std::string algorithm = "LN_BOBYQA";

@@ -3,13 +3,14 @@
 // the best effect comes within 1.5x of the noise floor (the truth model's own error), and the share of
 // effect-free cases where diagnose wrongly claims an effect.
 //
-// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S]
+// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S] [--verbose 1]
 
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string>
 
+#include "stagefit/common/memory.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/diagnose/diagnose.h"
 #include "stagefit/model/model_file.h"
@@ -17,12 +18,14 @@
 
 int main(int argc, char** argv) {
   using namespace stagefit;
-  int cases = 30, effect_free = 10;
+  KeepFreedMemory();  // as the stagefit program does
+  int cases = 30, effect_free = 10, verbose = 0;
   uint64_t first_seed = 1000;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--cases")) cases = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
+    if (!std::strcmp(argv[i], "--verbose")) verbose = std::atoi(argv[i + 1]);
   }
   const model::ModelSpec nominal = model::DefaultModelSpec();
   int ranked_first = 0, near_floor = 0, false_claims = 0;
@@ -33,6 +36,7 @@ int main(int argc, char** argv) {
     options.num_effects = with_effect ? 1 : 0;
     auto hidden = synthetic::MakeHiddenEffectCase(nominal, first_seed + c, options);
     diagnose::DiagnoseOptions diagnose_options;
+    if (verbose) diagnose_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
     auto summary = diagnose::Diagnose(nominal, hidden.measurement, diagnose_options);
     auto comparison = compare::Comparison::Create(nominal, hidden.measurement, diagnose_options.comparison);
     const double floor = comparison.Error(hidden.truth);
@@ -44,9 +48,10 @@ int main(int argc, char** argv) {
       const bool close = best.error_after <= 1.5 * floor;
       ranked_first += first;
       near_floor += close;
-      std::printf("case %3d  %-40s -> %-40s first=%d  error %.4f -> %.4f (floor %.4f) %s  %.1f s\n", c,
-                  (truth.name + "@" + truth.location).c_str(), (best.effect.name + "@" + best.effect.location).c_str(),
-                  first, summary.error_baseline, best.error_after, floor, close ? "near-floor" : "", summary.time_s);
+      std::printf("case %3d  %-28s (vis %5.1f) -> %-28s first=%d  error %.4f -> %.4f (floor %.4f) %s  %.1f s\n", c,
+                  (truth.name + "@" + truth.location).c_str(), truth.visibility,
+                  (best.effect.name + "@" + best.effect.location).c_str(), first, summary.error_baseline,
+                  best.error_after, floor, close ? "near-floor" : "", summary.time_s);
     } else {
       false_claims += summary.effect_found;
       std::printf("case %3d  (no effect)  claimed=%d (%s)  error %.4f, floor %.4f  %.1f s\n", c, summary.effect_found,

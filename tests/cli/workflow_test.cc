@@ -57,6 +57,31 @@ TEST(CompareCommand, BadMeasurementFilesExitTwoNamingTheFile) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
 }
 
+// The diagnose report holds what SPEC §4 names (candidates with effect, location, error_after and the
+// fitted parameters; where) and the rigid-body consistency of the channels. One cheap effect and the
+// hexapod's stiffnesses keep it short.
+TEST(DiagnoseCommand, ReportsCandidatesAndWhere) {
+  auto dir = TempDir("diagnose");
+  auto r = RunStagefit("diagnose --measurement " + kExample + "frf.mat --effects delay --params 'hexapod.k.*' --report " +
+                       (dir / "d.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto report = ReadJson(dir / "d.json");
+  ASSERT_TRUE(report["candidates"].is_array());
+  ASSERT_EQ(report["candidates"].size(), 1u);
+  const auto& c = report["candidates"][0];
+  EXPECT_EQ(c["effect"], "delay");
+  EXPECT_EQ(c["location"], "acquisition");
+  EXPECT_TRUE(c["parameters"].contains("tau"));
+  EXPECT_GT(c["error_after"].get<double>(), 0.0);
+  EXPECT_TRUE(report["effect_found"].is_boolean());
+  const auto& where = report["where"];
+  EXPECT_FALSE(where["bands"].empty());
+  EXPECT_FALSE(where["elements"].empty());
+  ASSERT_TRUE(where["rigid_consistency"].is_object());
+  EXPECT_EQ(where["rigid_consistency"]["least_consistent"].size(), 4u);
+  EXPECT_NE(r.output.find("rigid-body consistency"), std::string::npos) << r.output;
+}
+
 TEST(FitCommand, TunedFileReproducesTheReportedError) {
   auto dir = TempDir("fit");
   auto r = RunStagefit("fit --measurement " + kExample + "frf.mat --params \"hexapod.k.*\" --out " +

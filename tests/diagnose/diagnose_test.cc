@@ -52,5 +52,19 @@ TEST(Diagnose, FindsAHiddenPayload) {
   EXPECT_NEAR(summary.candidates[0].effect.parameters.at("mass"), 6.0, 1.0);
 }
 
+// Effect-free data (stiffness scatter and noise only): the baseline fit reaches the noise floor and
+// no candidate of the catalogue is claimed.
+TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions options;
+  options.num_effects = 0;
+  auto c = synthetic::MakeHiddenEffectCase(nominal, 7, options);
+  auto summary = Diagnose(nominal, c.measurement, QuietOptions());
+  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
+  const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
+  EXPECT_LT(summary.error_baseline, 1.05 * floor);
+  EXPECT_FALSE(summary.effect_found);
+}
+
 }  // namespace
 }  // namespace stagefit::diagnose

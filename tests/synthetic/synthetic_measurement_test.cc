@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stagefit/compare/residuals.h"
 #include "stagefit/model/assembled_model.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/linear_system.h"
@@ -112,6 +113,20 @@ TEST(HiddenEffectCase, IsReproducibleFromItsSeed) {
   EXPECT_EQ(a.effects[0].description, b.effects[0].description);
   EXPECT_EQ(a.measurement.frf.back(), b.measurement.frf.back());
   measurement::Validate(a.measurement);
+}
+
+// Every case records how much its effect matters and is a valid measurement that the compliance comparison accepts: seed 1012 makes an element exactly zero (a
+// drive spring in ty.Dy keeps a symmetry), which once gave 0/0 coherence, then coherence 0, whose
+// infinite variance the projection spread over every compliance element.
+TEST(HiddenEffectCase, DrawsVisibleEffectsAndValidMeasurements) {
+  for (uint64_t seed : {1012u, 1013u, 1014u}) {
+    SCOPED_TRACE(seed);
+    auto c = MakeHiddenEffectCase(model::DefaultModelSpec(), seed, {});
+    ASSERT_EQ(c.effects.size(), 1u);
+    EXPECT_GT(c.effects[0].visibility, 0.0);  // (a drive spring of ry.Ry can stay below min_visibility)
+    measurement::Validate(c.measurement);
+    EXPECT_NO_THROW(compare::Comparison::Create(model::DefaultModelSpec(), c.measurement));
+  }
 }
 
 }  // namespace

@@ -15,8 +15,14 @@
 //    forces built from the measurement's ChannelGeometry, so a measurement with its own geometry
 //    needs no [[sensor]] or [[excitation]] entries in the model. The model's [[geometry_correction]]
 //    entries (the sensor-geometry effect) move and turn the model's copies of those channels, so a
-//    corrected geometry is fitted against the declared one. (In compliance space the projection uses
-//    the declared geometry: a sensor-geometry effect is not seen there.)
+//    corrected geometry is fitted against the declared one.
+//  - Geometry corrections in compliance space: the measurement is re-projected with the channels at
+//    their corrected geometry (J_a, J_F rebuilt), with the points and weights chosen at Create() from
+//    the declared geometry, so that errors with and without a correction are sums over the same points.
+//    The weight of a point is its SNR again (below), |H_X| re-projected over the noise propagated at
+//    Create(): an element that was significant only through the geometry error (cross-talk a turned
+//    sensor put there) falls to its true SNR and stops counting. A wrong sensor direction thus shows
+//    in both spaces. (A measurement given already projected has no channels to correct.)
 // Both sides are in the comparison quantity (the measurement's unless overridden). The ratio
 // H_model / H_meas, hence the error, does not depend on the quantity: s^p cancels.
 //
@@ -154,6 +160,8 @@ struct ComparisonResult {
   /// The model on the comparison grid: num_frequencies() matrices of size num_outputs x num_inputs, in
   /// the comparison quantity.
   std::vector<Eigen::MatrixXcd> model;
+  /// The measurement it was compared with (Comparison::MeasuredFor() the model): same layout.
+  std::vector<Eigen::MatrixXcd> measured;
 
   /// The error, the `max_rows` worst elements and the `max_rows` worst bands, as a short table.
   std::string BriefReport(int max_rows = 8) const;
@@ -205,8 +213,19 @@ class Comparison {
   const std::vector<std::string>& input_names() const { return input_names_; }
   int num_outputs() const { return static_cast<int>(output_names_.size()); }
   int num_inputs() const { return static_cast<int>(input_names_.size()); }
-  /// The measurement on the grid, in the comparison space and quantity (num_frequencies() matrices).
+  /// The measurement on the grid, in the comparison space and quantity (num_frequencies() matrices),
+  /// with the declared channel geometry.
   const std::vector<Eigen::MatrixXcd>& measured() const { return measured_; }
+  /// The measurement `spec` is compared with: measured(), or in compliance space, when `spec` holds
+  /// geometry corrections of the measurement's channels, the raw data re-projected with the corrected
+  /// geometry (header); then `storage` holds it. Throws InputError when a corrected geometry cannot
+  /// observe the six DoF.
+  const std::vector<Eigen::MatrixXcd>& MeasuredFor(const model::ModelSpec& spec,
+                                                   std::vector<Eigen::MatrixXcd>* storage) const;
+  /// The names of the channels whose geometry a sensor-geometry effect can correct: the raw outputs
+  /// and inputs (in raw space, or in compliance space for a measurement projected here); empty for a
+  /// measurement given already projected.
+  std::vector<std::string> CorrectableChannels() const;
   /// The weight w of every point (num_frequencies() matrices num_outputs x num_inputs; 0 = unused).
   const std::vector<Eigen::MatrixXd>& weights() const { return weights_; }
   /// kappa of every element (num_outputs x num_inputs).
@@ -233,8 +252,18 @@ class Comparison {
 
   Comparison() = default;
   model::SecondOrderSystem BuildModelSystem(const model::AssembledModel& model) const;
-  // e_p for every point, from the model's FRF values (layout of response::FrfArray::values).
-  void CalcLogErrors(const Eigen::MatrixXcd& model_values, Eigen::VectorXcd* e) const;
+  // The measured side for one model: values (MeasuredFor()) and the points' weights with their norm.
+  struct MeasuredSide {
+    std::vector<Eigen::MatrixXcd> storage;
+    const std::vector<Eigen::MatrixXcd>* values = nullptr;
+    std::vector<double> weights;  // per point
+    double norm = 1.0;            // sqrt(sum w^2)
+  };
+  void SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const;
+  // e_p for every point, from the model's FRF values (layout of response::FrfArray::values) and the
+  // measured side.
+  void CalcLogErrors(const Eigen::MatrixXcd& model_values, const std::vector<Eigen::MatrixXcd>& measured,
+                     Eigen::VectorXcd* e) const;
 
   ComparisonSpace space_ = ComparisonSpace::kCompliance;
   measurement::FrfQuantity quantity_ = measurement::FrfQuantity::kAccelerance;
@@ -251,6 +280,14 @@ class Comparison {
   Eigen::Vector3d p_WXo_ = Eigen::Vector3d::Zero();
   std::vector<model::InputSpec> model_inputs_;
   std::vector<model::OutputSpec> model_outputs_;
+  // Compliance space from raw channels: the raw data on the grid in the comparison quantity and the
+  // declared channel geometry, for re-projection under geometry corrections.
+  std::vector<Eigen::MatrixXcd> raw_measured_;
+  std::vector<measurement::ChannelGeometry> raw_outputs_, raw_inputs_;
+  // With coherence: the propagated noise standard deviation of every projected point (6 x 6 per
+  // frequency) and the weight cap, to weigh a re-projected measurement.
+  std::vector<Eigen::MatrixXd> noise_sigma_;
+  double weight_cap_ = kDefaultCoherenceWeightCap;
 };
 
 }  // namespace stagefit::compare

@@ -19,9 +19,16 @@
 //     flexible effect "win" by a little).
 //  4. Where. The bands and elements carrying the baseline's error, measured modes without a model
 //     partner and model modes without a measured one (with the joint DoF holding their strain energy),
-//     and the rigid-body consistency of the measurement.
+//     and the rigid-body consistency of the measurement: the share of the raw data that no rigid
+//     motion of the instrumented body explains, per channel (a wrong sensor direction, a local mode).
+//
+// Fitting. The baseline is a full stiffness fit (fit::FitModel with its defaults: short first steps
+// and basin probes), so that a mistuned model is not blamed on a missing effect. Candidates are
+// screened with Ceres' long first steps (kDiagnoseTrustRegionRadius), which bring an effect's mass or
+// stiffness near its value within a few iterations; the refined ones are finished with basin probes.
 
 #include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -44,6 +51,7 @@ struct DiagnoseOptions {
   int screening_iterations = 4;   ///< iterations of the short fit of every candidate
   int num_refined = 10;           ///< candidates refitted fully after screening
   int refine_iterations = 30;
+  int num_second_starts = 3;      ///< leaders refitted from the model's parameters as given
   int baseline_iterations = 50;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
   int num_threads = 2;
@@ -83,6 +91,17 @@ struct DiagnoseSummary {
   std::vector<ModeMismatch> mispaired_modes;
   std::vector<double> unpaired_measured_hz;
   std::vector<std::pair<double, std::string>> unpaired_model;  ///< frequency, dominant DoF
+  /// Rigid-body consistency (measurement::CalcRigidConsistency about {X}); NaN / empty when the
+  /// measurement has no channel geometry. The largest share over the bands of the data energy that
+  /// no rigid motion explains (outputs and inputs), and the least consistent channels, worst first (at
+  /// most 4): name, share (the channel's median over the bands), centre of its worst band.
+  double rigid_residual_share = std::numeric_limits<double>::quiet_NaN();
+  struct ChannelConsistency {
+    std::string channel;
+    double share = 0;
+    double band_hz = 0;
+  };
+  std::vector<ChannelConsistency> inconsistent_channels;
   double time_s = 0;
   std::string BriefReport(int max_candidates = 8) const;
 };
@@ -102,7 +121,8 @@ struct EffectFit {
   fit::FitSummary summary;
   model::ModelSpec spec;
 };
+/// With `probe_basins` the fit ends with fit::SolveWithProbes' basin probes.
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
-                    const std::vector<std::string>& params, int max_iterations);
+                    const std::vector<std::string>& params, int max_iterations, bool probe_basins = false);
 
 }  // namespace stagefit::diagnose

@@ -212,6 +212,13 @@ struct FitSummary {
 FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                  const FitOptions& options);
 
+/// Solve(), then the basin probes of FitOptions::probe_factors (up to max_probe_rounds): from the kept
+/// optimum, each log-scale parameter in turn times each factor, the others kept; the fit restarts
+/// from the best probe that lowers the cost by more than probe_min_improvement and the restarted fit
+/// is kept when it ends lower. num_evaluations counts the probes; time_s covers everything.
+FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
+                           const FitOptions& options);
+
 /// Relative rank tolerance on the singular values of the column-scaled Jacobian.
 inline constexpr double kRankTolerance = 1e-10;
 

@@ -52,12 +52,17 @@ std::vector<measurement::ChannelGeometry> ComplianceTestImpacts(const std::strin
 Eigen::VectorXd LogFrequencies(double fmin_hz, double fmax_hz, int count);
 
 /// A hidden-effect test case: a truth model made from the nominal one by scattering its stiffnesses and
-/// adding zero, one or two physical effects at random locations and magnitudes large enough to matter,
-/// and its noisy 12x10 accelerance measurement of the top plate with the DECLARED (nominal) geometry.
+/// adding zero, one or two physical effects at random locations and magnitudes large enough to matter
+/// (HiddenEffectOptions::min_visibility), and its noisy 12x10 accelerance measurement of the top plate
+/// with the DECLARED (nominal) geometry. For a rotated sensor the truth carries the geometry correction
+/// that undoes it, so that the truth's error is the noise floor in either comparison space.
 struct HiddenEffect {
   std::string name;       ///< catalogue name, e.g. "payload"
   std::string location;   ///< catalogue location, e.g. "hexapod"
   std::string description;
+  /// How much the effect alone changes the noise-free data, in noise standard deviations (RMS over all
+  /// elements and frequencies of |H_with - H_without| / sigma, sigma of AddNoise's model).
+  double visibility = 0;
 };
 struct HiddenEffectCase {
   uint64_t seed = 0;
@@ -72,6 +77,10 @@ struct HiddenEffectOptions {
   double noise_min = 0.01, noise_max = 0.03;
   double fmin_hz = 10.0, fmax_hz = 400.0;
   int num_frequencies = 300;
+  /// "Large enough to matter": an effect is drawn again (location and magnitude) until its visibility
+  /// reaches this, at most max_draws times (the last draw is kept).
+  double min_visibility = 2.0;
+  int max_draws = 20;
 };
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
 
