@@ -4,6 +4,7 @@
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/memory.h"
+#include "stagefit/common/parallel.h"
 
 namespace stagefit::cli {
 
@@ -22,6 +23,11 @@ int main(int argc, char** argv) {
   CLI::App app{"stagefit: models of precision positioning stages, tuned against vibration measurements"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "stagefit 0.1.0");
+  app.add_option_function<int>(
+         "--threads", [](int threads) { stagefit::SetMaxThreads(threads); },
+         "threads for the FRF evaluations (default: STAGEFIT_THREADS, else every core); results do not "
+         "depend on it")
+      ->check(CLI::Range(1, 1024));
 
   // The table of subcommands.
   RegisterModelCommand(app);

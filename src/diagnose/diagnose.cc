@@ -302,6 +302,7 @@ EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& com
   options.max_iterations = max_iterations;
   options.function_tolerance = 1e-8;
   options.initial_trust_region_radius = kDiagnoseTrustRegionRadius;
+  options.projected_line_search = true;  // a screening fit has 4 iterations
   EffectFit result;
   result.summary = probe_basins ? fit::SolveWithProbes(problem, specs, options) : fit::Solve(problem, specs, options);
   Eigen::VectorXd p = result.summary.values();

@@ -194,6 +194,7 @@ StageResult RunCeres(const ceres::CostFunction& cost, const ParameterMap& map, c
     if (std::isfinite(map.UpperTheta(i))) problem.SetParameterUpperBound(result.theta.data(), i, map.UpperTheta(i));
   }
   ceres::Solver::Options solver_options;
+  solver_options.max_num_line_search_step_size_iterations = options.projected_line_search ? 20 : 0;
   solver_options.minimizer_type = ceres::TRUST_REGION;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.linear_solver_type = ceres::DENSE_QR;
@@ -726,8 +727,14 @@ FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<Parameter
 }
 
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
-                           const FitOptions& options) {
+                           const FitOptions& options, const std::vector<SeriesPair>& series) {
   const auto t0 = Clock::now();
+  for (const SeriesPair& pair : series) {
+    STAGEFIT_ASSERT(pair.a != pair.b && pair.a >= 0 && pair.b >= 0 && pair.a < static_cast<int>(parameters.size()) &&
+                        pair.b < static_cast<int>(parameters.size()),
+                    "series pair (" << pair.a << ", " << pair.b << ") outside the " << parameters.size()
+                                    << " parameters");
+  }
   std::vector<ParameterSpec> start = parameters;
   FitSummary summary = Solve(problem, start, options);
   const double initial_cost = summary.initial_cost, initial_error = summary.initial_error;
@@ -739,20 +746,46 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
     const Eigen::VectorXd p = summary.values();
     double best_cost = summary.final_cost * (1.0 - options.probe_min_improvement);
     Eigen::VectorXd best;
+    auto probe = [&](const Eigen::VectorXd& q) {
+      ++evaluations;
+      if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) return;
+      const double cost = 0.5 * r.squaredNorm();
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = q;
+      }
+    };
     for (size_t i = 0; i < start.size(); ++i) {
       const ParameterSpec& s = start[i];
       if (!s.log_scale) continue;
       for (const double factor : options.probe_factors) {
         Eigen::VectorXd q = p;
         q[i] = std::clamp(p[i] * factor, s.lower, s.upper);
-        if (q[i] == p[i]) continue;
-        ++evaluations;
-        if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) continue;
-        const double cost = 0.5 * r.squaredNorm();
-        if (cost < best_cost) {
-          best_cost = cost;
-          best = q;
-        }
+        if (q[i] != p[i]) probe(q);
+      }
+      if (options.probe_initial_values && std::abs(std::log(p[i] / parameters[i].initial)) > std::log(2.0)) {
+        Eigen::VectorXd q = p;
+        q[i] = parameters[i].initial;
+        probe(q);
+      }
+    }
+    const bool single_found = best.size() != 0;
+    for (size_t k = 0; options.probe_series && k < series.size() && !single_found; ++k) {
+      const int a = series[k].a, b = series[k].b;
+      const ParameterSpec &sa = parameters[a], &sb = parameters[b];
+      if (!sa.log_scale || !sb.log_scale) continue;
+      const double c = 1.0 / p[a] + 1.0 / p[b];
+      const double share = 1.0 / p[a] / c;
+      const double initial_share = 1.0 / sa.initial / (1.0 / sa.initial + 1.0 / sb.initial);
+      std::vector<double> shares(std::begin(kSeriesProbeShares), std::end(kSeriesProbeShares));
+      shares.push_back(initial_share);
+      shares.push_back(1.0 - share);
+      for (const double s : shares) {
+        if (std::abs(s - share) < 0.05) continue;
+        Eigen::VectorXd q = p;
+        q[a] = std::clamp(1.0 / (s * c), sa.lower, sa.upper);
+        q[b] = std::clamp(1.0 / ((1.0 - s) * c), sb.lower, sb.upper);
+        probe(q);
       }
     }
     if (best.size() == 0) break;

@@ -3,6 +3,7 @@
 #include <fnmatch.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -111,6 +112,43 @@ std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
   return specs;
 }
 
+std::vector<SeriesPair> SeriesPairs(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& parameters) {
+  // The fitted stiffness of each (joint, DoF).
+  std::vector<std::array<int, 6>> fitted(spec.joints.size());
+  for (auto& f : fitted) f.fill(-1);
+  for (size_t i = 0; i < parameters.size(); ++i) {
+    const auto& info = parameters[i];
+    if (info.kind == model::ParameterKind::kStiffness) fitted[info.joint][static_cast<int>(info.a)] = static_cast<int>(i);
+  }
+  // The joint standing on a body, when it is the only one.
+  auto joint_on = [&](const std::string& body) {
+    int found = -1;
+    for (size_t j = 0; j < spec.joints.size(); ++j) {
+      if (spec.joints[j].parent != body) continue;
+      if (found >= 0) return -1;
+      found = static_cast<int>(j);
+    }
+    return found;
+  };
+  std::vector<SeriesPair> pairs;
+  for (size_t j = 0; j < spec.joints.size(); ++j) {
+    for (int d = 0; d < 6; ++d) {
+      if (fitted[j][d] < 0) continue;
+      int k = static_cast<int>(j);
+      for (size_t steps = 0; steps < spec.joints.size(); ++steps) {
+        k = joint_on(spec.joints[k].child);
+        if (k < 0) break;
+        const model::JointSpec& upper = spec.joints[k];
+        if (!(upper.R_WJ.transpose() * spec.joints[j].R_WJ).isIdentity(1e-9)) break;
+        if (upper.imposed[d]) continue;
+        if (fitted[k][d] >= 0) pairs.push_back({fitted[j][d], fitted[k][d]});
+        break;
+      }
+    }
+  }
+  return pairs;
+}
+
 FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& comparison,
                     const std::vector<model::ParameterInfo>& parameters, const FitOptions& options,
                     const std::vector<BoundRule>& bounds) {
@@ -118,7 +156,7 @@ FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& compariso
   const std::vector<ParameterSpec> specs = MakeParameterSpecs(spec, parameters, bounds);
   const double error_before = comparison.Error(spec);
   const ModelFitProblem problem(spec, comparison, parameters);
-  FitSummary summary = SolveWithProbes(problem, specs, options);
+  FitSummary summary = SolveWithProbes(problem, specs, options, SeriesPairs(spec, parameters));
   summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (size_t i = 0; i < parameters.size(); ++i) model::SetParameter(spec, parameters[i], summary.parameters[i].value);
   summary.initial_error = error_before;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/model/modes.h"
 
 namespace stagefit::response {
@@ -490,117 +491,144 @@ void FrfEvaluator::EvaluateModal(const Eigen::VectorXd& omega_rad_s, int power,
   }
 
   const Eigen::Index block = std::min<Eigen::Index>(options_.block_size, std::max<Eigen::Index>(nf, 1));
-  block_.resize(block, cols);
-  prefactor_.resize(block);
-  factor_.resize(block);
-  scaled_x_.resize(block);
-  scratch1_.resize(block);
-  scratch2_.resize(block);
-  scratch3_.resize(block);
-  if (real) {
-    coef_real_.resize(2 * block, residue_real_.rows());
-    block_real_.resize(2 * block, cols);
-  } else {
-    coef_complex_.resize(block, num_used);
+  const int num_blocks = static_cast<int>((nf + block - 1) / block);
+  const int workers = WorkersFor(num_blocks);
+  if (static_cast<int>(workspaces_.size()) < workers) workspaces_.resize(workers);
+  for (int w = 0; w < workers; ++w) {
+    workspaces_[w].Resize(block, cols, real, real ? residue_real_.rows() : 0, num_used);
   }
+  ParallelFor(num_blocks, [&](int task, int worker) {
+    const Eigen::Index f0 = task * block;
+    EvaluateModalBlock(omega_rad_s, f0, std::min(block, nf - f0), power, derivatives, support, position, frf,
+                       d_values, &workspaces_[worker]);
+  });
+}
+
+void FrfEvaluator::BlockWorkspace::Resize(Eigen::Index block_size, int cols, bool real, Eigen::Index num_real_rows,
+                                          int num_complex) {
+  block.resize(block_size, cols);
+  prefactor.resize(block_size);
+  factor.resize(block_size);
+  scaled_x.resize(block_size);
+  scratch1.resize(block_size);
+  scratch2.resize(block_size);
+  scratch3.resize(block_size);
+  if (real) {
+    coef_real.resize(2 * block_size, num_real_rows);
+    block_real.resize(2 * block_size, cols);
+  } else {
+    coef_complex.resize(block_size, num_complex);
+  }
+}
+
+// One block of frequencies [f0, f0 + nb): writes those rows of frf and d_values only, and its own workspace.
+void FrfEvaluator::EvaluateModalBlock(const Eigen::VectorXd& omega_rad_s, Eigen::Index f0, Eigen::Index nb,
+                                      int power, const std::vector<DynamicStiffnessDerivative>* derivatives,
+                                      const std::vector<int>& support, const std::vector<int>& position,
+                                      FrfArray* frf, std::vector<Eigen::MatrixXcd>* d_values,
+                                      BlockWorkspace* ws) const {
+  const model::SecondOrderSystem& sys = system_;
+  Layout layout;
+  layout.no = sys.num_outputs();
+  layout.ni = sys.num_inputs();
+  layout.ns = static_cast<int>(support.size());
+  const int cols = layout.cols();
+  const bool real = summary_.real_arithmetic;
+  const int num_used = real ? static_cast<int>(pair_index_.size()) : 2 * sys.num_dofs();
   const double tau = sys.delay_s;
-
-  for (Eigen::Index f0 = 0; f0 < nf; f0 += block) {
-    const Eigen::Index nb = std::min(block, nf - f0);
-    const auto w = omega_rad_s.segment(f0, nb).array();
-    if (real) {
-      // c = 1/(j w - lambda), c' = 1/(j w - conj(lambda)), lambda = a + j b:
-      // alpha = c + c', beta = j (c - c'); rows [0, nb) real parts, [nb, 2 nb) imaginary parts.
-      for (int r = 0; r < num_pairs_; ++r) {
-        const Complex p = poles_(pair_index_[r]);
-        const double a = p.real(), b = p.imag();
-        auto re_a = coef_real_.col(2 * r).head(nb).array();
-        auto re_b = coef_real_.col(2 * r + 1).head(nb).array();
-        auto im_a = coef_real_.col(2 * r).segment(nb, nb).array();
-        auto im_b = coef_real_.col(2 * r + 1).segment(nb, nb).array();
-        auto inv1 = scratch1_.head(nb);
-        auto inv2 = scratch2_.head(nb);
-        // One division for both: 1/den1 = den2 / (den1 den2) and vice versa.
-        auto r_both = scratch3_.head(nb);
-        inv1 = a * a + (w - b).square();
-        inv2 = a * a + (w + b).square();
-        r_both = (inv1 * inv2).inverse();
-        inv1 = inv2 * r_both;
-        inv2 = (a * a + (w - b).square()) * r_both;
-        re_a = -a * (inv1 + inv2);
-        re_b = (w - b) * inv1 - (w + b) * inv2;
-        im_a = -(w - b) * inv1 - (w + b) * inv2;
-        im_b = a * (inv2 - inv1);
-      }
-      for (int r = num_pairs_; r < num_used; ++r) {
-        const double a = poles_(pair_index_[r]).real();
-        const int c = num_pairs_ + r;
-        auto re = coef_real_.col(c).head(nb).array();
-        auto im = coef_real_.col(c).segment(nb, nb).array();
-        im = (a * a + w.square()).inverse();
-        re = -a * im;
-        im = -w * im;
-      }
-      block_real_.topRows(2 * nb).noalias() = coef_real_.topRows(2 * nb) * residue_real_;
-      for (int c = layout.y(); c < cols; ++c) {
-        block_.col(c).head(nb).real() = block_real_.col(c).head(nb);
-        block_.col(c).head(nb).imag() = block_real_.col(c).segment(nb, nb);
-      }
-    } else {
-      for (int r = 0; r < num_used; ++r) {
-        const double a = poles_(r).real(), b = poles_(r).imag();
-        auto inv = scratch1_.head(nb);
-        inv = (a * a + (w - b).square()).inverse();
-        coef_complex_.col(r).head(nb).real() = -a * inv;
-        coef_complex_.col(r).head(nb).imag() = -(w - b) * inv;
-      }
-      block_.topRows(nb).noalias() = coef_complex_.topRows(nb) * residue_;
+  const auto w = omega_rad_s.segment(f0, nb).array();
+  if (real) {
+    // c = 1/(j w - lambda), c' = 1/(j w - conj(lambda)), lambda = a + j b:
+    // alpha = c + c', beta = j (c - c'); rows [0, nb) real parts, [nb, 2 nb) imaginary parts.
+    for (int r = 0; r < num_pairs_; ++r) {
+      const Complex p = poles_(pair_index_[r]);
+      const double a = p.real(), b = p.imag();
+      auto re_a = ws->coef_real.col(2 * r).head(nb).array();
+      auto re_b = ws->coef_real.col(2 * r + 1).head(nb).array();
+      auto im_a = ws->coef_real.col(2 * r).segment(nb, nb).array();
+      auto im_b = ws->coef_real.col(2 * r + 1).segment(nb, nb).array();
+      auto inv1 = ws->scratch1.head(nb);
+      auto inv2 = ws->scratch2.head(nb);
+      // One division for both: 1/den1 = den2 / (den1 den2) and vice versa.
+      auto r_both = ws->scratch3.head(nb);
+      inv1 = a * a + (w - b).square();
+      inv2 = a * a + (w + b).square();
+      r_both = (inv1 * inv2).inverse();
+      inv1 = inv2 * r_both;
+      inv2 = (a * a + (w - b).square()) * r_both;
+      re_a = -a * (inv1 + inv2);
+      re_b = (w - b) * inv1 - (w + b) * inv2;
+      im_a = -(w - b) * inv1 - (w + b) * inv2;
+      im_b = a * (inv2 - inv1);
     }
-
-    // H = e^{-s tau} (modal sum + E_p(s)).
-    auto pre = prefactor_.head(nb);
-    if (tau != 0.0) {
-      pre = (Complex(0.0, -tau) * w.cast<Complex>()).exp();
-    } else {
-      pre.setConstant(1.0);
+    for (int r = num_pairs_; r < num_used; ++r) {
+      const double a = poles_(pair_index_[r]).real();
+      const int c = num_pairs_ + r;
+      auto re = ws->coef_real.col(c).head(nb).array();
+      auto im = ws->coef_real.col(c).segment(nb, nb).array();
+      im = (a * a + w.square()).inverse();
+      re = -a * im;
+      im = -w * im;
     }
+    ws->block_real.topRows(2 * nb).noalias() = ws->coef_real.topRows(2 * nb) * residue_real_;
+    for (int c = layout.y(); c < cols; ++c) {
+      ws->block.col(c).head(nb).real() = ws->block_real.col(c).head(nb);
+      ws->block.col(c).head(nb).imag() = ws->block_real.col(c).segment(nb, nb);
+    }
+  } else {
+    for (int r = 0; r < num_used; ++r) {
+      const double a = poles_(r).real(), b = poles_(r).imag();
+      auto inv = ws->scratch1.head(nb);
+      inv = (a * a + (w - b).square()).inverse();
+      ws->coef_complex.col(r).head(nb).real() = -a * inv;
+      ws->coef_complex.col(r).head(nb).imag() = -(w - b) * inv;
+    }
+    ws->block.topRows(nb).noalias() = ws->coef_complex.topRows(nb) * residue_;
+  }
+
+  // H = e^{-s tau} (modal sum + E_p(s)).
+  auto pre = ws->prefactor.head(nb);
+  if (tau != 0.0) {
+    pre = (Complex(0.0, -tau) * w.cast<Complex>()).exp();
+  } else {
+    pre.setConstant(1.0);
+  }
+  for (int i = 0; i < layout.ni; ++i) {
+    for (int o = 0; o < layout.no; ++o) {
+      const int c = o + layout.no * i;
+      auto h = frf->values.col(c).segment(f0, nb);
+      if (real) {
+        h.real() = ws->block_real.col(c).head(nb);
+        h.imag() = ws->block_real.col(c).segment(nb, nb);
+      } else {
+        h = ws->block.col(c).head(nb);
+      }
+      auto ha = h.array();
+      const double d = direct_d_(o, i);
+      switch (power) {
+        case 0:
+          ha += d;
+          break;
+        case 1:
+          ha += direct_e1_(o, i) + (kJ * d) * w;
+          break;
+        default:
+          ha += direct_e2_(o, i) + (kJ * direct_e1_(o, i)) * w - d * w.square();
+          break;
+      }
+      if (tau != 0.0) ha *= pre;
+    }
+  }
+  if (derivatives) {
     for (int i = 0; i < layout.ni; ++i) {
-      for (int o = 0; o < layout.no; ++o) {
-        const int c = o + layout.no * i;
-        auto h = frf->values.col(c).segment(f0, nb);
-        if (real) {
-          h.real() = block_real_.col(c).head(nb);
-          h.imag() = block_real_.col(c).segment(nb, nb);
-        } else {
-          h = block_.col(c).head(nb);
-        }
-        auto ha = h.array();
-        const double d = direct_d_(o, i);
-        switch (power) {
-          case 0:
-            ha += d;
-            break;
-          case 1:
-            ha += direct_e1_(o, i) + (kJ * d) * w;
-            break;
-          default:
-            ha += direct_e2_(o, i) + (kJ * direct_e1_(o, i)) * w - d * w.square();
-            break;
-        }
-        if (tau != 0.0) ha *= pre;
+      for (int s = 0; s < layout.ns; ++s) {
+        ws->block.col(layout.x() + s + layout.ns * i).head(nb).array() += dof_direct_d_(support[s], i);
       }
     }
-    if (derivatives) {
-      for (int i = 0; i < layout.ni; ++i) {
-        for (int s = 0; s < layout.ns; ++s) {
-          block_.col(layout.x() + s + layout.ns * i).head(nb).array() += dof_direct_d_(support[s], i);
-        }
-      }
-      if (power == 1) pre *= kJ * w;
-      if (power == 2) pre *= -w.square();
-      AccumulateDerivatives(w, prefactor_, f0, block_, layout, position, *derivatives, d_values,
-                            &factor_, &scaled_x_);
-    }
+    if (power == 1) pre *= kJ * w;
+    if (power == 2) pre *= -w.square();
+    AccumulateDerivatives(w, ws->prefactor, f0, ws->block, layout, position, *derivatives, d_values,
+                          &ws->factor, &ws->scaled_x);
   }
 }
 
@@ -621,10 +649,12 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
     frf->values.resize(nf, layout.no * layout.ni);
   }
   const Eigen::Index block = std::min<Eigen::Index>(options_.block_size, std::max<Eigen::Index>(nf, 1));
-  block_.resize(block, layout.cols());
-  prefactor_.resize(block);
-  factor_.resize(block);
-  scaled_x_.resize(block);
+  if (workspaces_.empty()) workspaces_.resize(1);
+  BlockWorkspace& ws = workspaces_[0];
+  ws.block.resize(block, layout.cols());
+  ws.prefactor.resize(block);
+  ws.factor.resize(block);
+  ws.scaled_x.resize(block);
   Eigen::MatrixXcd Z(n, n), F(n, layout.ni), X(n, layout.ni), H(layout.no, layout.ni), Y(n, layout.no);
   const Eigen::MatrixXcd CqT = sys.Cq.transpose().cast<Complex>();
   Eigen::PartialPivLU<Eigen::MatrixXcd> lu(n);
@@ -633,7 +663,7 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
   for (Eigen::Index f0 = 0; f0 < nf; f0 += block) {
     const Eigen::Index nb = std::min(block, nf - f0);
     const auto w = omega_rad_s.segment(f0, nb).array();
-    auto pre = prefactor_.head(nb);
+    auto pre = ws.prefactor.head(nb);
     pre = (Complex(0.0, -tau) * w.cast<Complex>()).exp();
     if (power == 1) pre *= kJ * w;
     if (power == 2) pre *= -w.square();
@@ -654,14 +684,14 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
       if (derivatives) {
         Y.noalias() = lu.transpose().solve(CqT);  // (Cq Z^-1)'
         for (int s = 0; s < layout.ns; ++s) {
-          for (int o = 0; o < layout.no; ++o) block_(f, layout.y() + o + layout.no * s) = Y(support[s], o);
-          for (int i = 0; i < layout.ni; ++i) block_(f, layout.x() + s + layout.ns * i) = X(support[s], i);
+          for (int o = 0; o < layout.no; ++o) ws.block(f, layout.y() + o + layout.no * s) = Y(support[s], o);
+          for (int i = 0; i < layout.ni; ++i) ws.block(f, layout.x() + s + layout.ns * i) = X(support[s], i);
         }
       }
     }
     if (derivatives) {
-      AccumulateDerivatives(w, prefactor_, f0, block_, layout, position, *derivatives, d_values,
-                            &factor_, &scaled_x_);
+      AccumulateDerivatives(w, ws.prefactor, f0, ws.block, layout, position, *derivatives, d_values,
+                            &ws.factor, &ws.scaled_x);
     }
   }
 }

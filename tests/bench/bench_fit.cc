@@ -10,7 +10,7 @@
 //
 //   bench_fit [--trials 20] [--frequencies 1000] [--params "*.k.*"] [--compare-trials 5]
 //             [--nlopt-algorithm LN_BOBYQA] [--probe-rounds N] [--radius R] [--nonmonotonic 0|1]
-//             [--verbose 1|2]
+//             [--probe-initial 0|1] [--probe-series 0|1] [--verbose 1|2] [--first-trial K]
 //
 // Even a fitter that always finds the global optimum fails the 3-standard-deviation test in about
 // 1 - 0.9973^n of the trials (7 % for n = 27): the program prints that share beside its own.
@@ -79,6 +79,7 @@ Trial RunTrial(const Problem& problem, const std::vector<std::string>& patterns,
   t.time_s = summary.time_s;
   t.evaluations = summary.num_evaluations;
   t.recovered = true;
+  if (verbose) std::printf("    error at the truth %.6f, found %.6f\n", comparison.Error(problem.truth), summary.final_error);
   for (size_t i = 0; i < params.size(); ++i) {
     const auto& e = summary.parameters[i];
     if (!e.identifiable) continue;
@@ -119,16 +120,18 @@ struct Tally {
 
 int main(int argc, char** argv) {
   stagefit::KeepFreedMemory();  // as the stagefit program does
-  int trials = 20, frequencies = 1000, compare_trials = 5;
+  int trials = 20, frequencies = 1000, compare_trials = 5, first_trial = 0;
   std::string params = "*.k.*";
   std::string algorithm = "LN_BOBYQA";
   int probe_rounds = -1;  // -1: FitOptions' default
   double radius = -1;     // initial trust-region radius; -1: FitOptions' default
   int nonmonotonic = -1;
+  int probe_initial = -1, probe_series = -1;  // -1: FitOptions' default
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     const char* value = argv[i + 1];
     if (key == "--trials") trials = std::atoi(value);
+    else if (key == "--first-trial") first_trial = std::atoi(value);
     else if (key == "--frequencies") frequencies = std::atoi(value);
     else if (key == "--compare-trials") compare_trials = std::atoi(value);
     else if (key == "--params") params = value;
@@ -137,6 +140,8 @@ int main(int argc, char** argv) {
     else if (key == "--probe-rounds") probe_rounds = std::atoi(value);
     else if (key == "--radius") radius = std::atof(value);
     else if (key == "--nonmonotonic") nonmonotonic = std::atoi(value);
+    else if (key == "--probe-initial") probe_initial = std::atoi(value);
+    else if (key == "--probe-series") probe_series = std::atoi(value);
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 1;
@@ -155,18 +160,22 @@ int main(int argc, char** argv) {
   if (probe_rounds >= 0) ceres_options.max_probe_rounds = probe_rounds;
   if (radius > 0) ceres_options.initial_trust_region_radius = radius;
   if (nonmonotonic >= 0) ceres_options.nonmonotonic_steps = nonmonotonic != 0;
-  std::printf("initial trust region radius %g, non-monotonic steps %d, basin probe rounds %d\n",
+  if (probe_initial >= 0) ceres_options.probe_initial_values = probe_initial != 0;
+  if (probe_series >= 0) ceres_options.probe_series = probe_series != 0;
+  std::printf("initial trust region radius %g, non-monotonic steps %d, basin probe rounds %d (initial-value "
+              "probes %d, series probes %d)\n",
               ceres_options.initial_trust_region_radius, ceres_options.nonmonotonic_steps ? 1 : 0,
-              ceres_options.max_probe_rounds);
+              ceres_options.max_probe_rounds, ceres_options.probe_initial_values ? 1 : 0,
+              ceres_options.probe_series ? 1 : 0);
 
   Tally ceres, nlopt, numeric, ceres_subset;
   std::vector<Problem> problems;
   for (int k = 0; k < trials; ++k) {
-    problems.push_back(MakeProblem(patterns, frequencies, 100 + k));
+    problems.push_back(MakeProblem(patterns, frequencies, 100 + first_trial + k));
     const Trial t = RunTrial(problems.back(), patterns, ceres_options);
     ceres.Add(t);
     if (k < compare_trials) ceres_subset.Add(t);
-    std::printf("  trial %2d: ceres error %.5f (floor %.5f), %s, %d identifiable, %s, %d evaluations, %.3g s\n", k,
+    std::printf("  trial %2d: ceres error %.5f (floor %.5f), %s, %d identifiable, %s, %d evaluations, %.3g s\n", first_trial + k,
                 t.error, t.floor, t.converged ? "converged" : "NOT converged", t.identifiable,
                 t.recovered ? "recovered" : "NOT recovered", t.evaluations, t.time_s);
     std::fflush(stdout);

@@ -9,6 +9,7 @@
 #include <complex>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/response/io_sets.h"
 
@@ -436,6 +437,29 @@ TEST(FrfEvaluator, DerivativesWithGroundInputsAndDelayMatchFiniteDifferences) {
   spec.acquisition_delay_s = 2e-4;
   CheckDerivatives(spec, IoSet::kDisturbance, {"ty.k.*", "granite.c.Dz", "rz.eta.Dx"},
                    ResponseQuantity::kAccelerance);
+}
+
+TEST(FrfEvaluator, ResultsDoNotDependOnTheNumberOfThreads) {
+  // The frequency blocks are spread over the threads; each block computes the same numbers whichever
+  // thread runs it, so the results are bit-identical (complex spin: the complex path too).
+  for (const model::ModelSpec& spec : {model::DefaultModelSpec(), LossySpinningSpec()}) {
+    const auto assembled = model::AssembledModel::Assemble(spec);
+    const auto sys = BuildIoSetSystem(assembled, IoSet::kCompliance);
+    const auto params = model::MatchParameters(spec, {"*.k.*"});
+    const Eigen::VectorXd f = LogFrequencies(1.0, 2000.0, 1500);  // 6 blocks of 256
+    FrfWithDerivatives result[2];
+    for (const int threads : {1, 2}) {
+      SetMaxThreads(threads);
+      auto ev = FrfEvaluator::Create(sys);
+      ev.EvaluateWithDerivatives(f, ResponseQuantity::kReceptance, params, assembled, &result[threads - 1]);
+    }
+    SetMaxThreads(0);
+    EXPECT_TRUE(result[0].frf.values == result[1].frf.values) << spec.name;
+    ASSERT_EQ(result[0].derivatives.size(), result[1].derivatives.size());
+    for (size_t k = 0; k < params.size(); ++k) {
+      EXPECT_TRUE(result[0].derivatives[k] == result[1].derivatives[k]) << spec.name << " " << params[k].name;
+    }
+  }
 }
 
 TEST(FrfEvaluator, RejectsDerivativesForAnotherModel) {

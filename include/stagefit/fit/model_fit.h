@@ -72,7 +72,15 @@ std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
                                               const std::vector<model::ParameterInfo>& parameters,
                                               const std::vector<BoundRule>& bounds = {});
 
-/// Fits `parameters` of `spec` to the measurement of `comparison`. On return `spec` holds the values
+/// The stiffness parameters of `parameters` that act in series (SolveWithProbes' series probes): the
+/// same DoF of two joints one above the other on a chain (the upper joint's parent is the lower
+/// joint's child, the only joint on it; joints whose DoF is imposed, or whose DoF stiffness is not
+/// fitted, are walked through only when imposed), with parallel joint axes. The chain of joints
+/// passes through each body at most once.
+std::vector<SeriesPair> SeriesPairs(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& parameters);
+
+/// Fits `parameters` of `spec` to the measurement of `comparison`, with the series probes of
+/// SeriesPairs(). On return `spec` holds the values
 /// of the kept optimum (also when the fit did not converge: the status says so) and one more history
 /// entry {"fit", error after, detail}; summary.initial_error is comparison.Error() of the model as
 /// given and summary.final_error is comparison.Error(spec) of the returned spec, so that writing

@@ -202,11 +202,23 @@ class FrfEvaluator {
   std::vector<int> pair_index_;  // real path: the poles with Im > 0 (one per pair), then the real poles
   int num_pairs_ = 0;
 
+  // Workspace of one thread over one block of frequencies (reused between calls).
+  struct BlockWorkspace {
+    Eigen::MatrixXcd block, coef_complex;
+    Eigen::MatrixXd coef_real, block_real;
+    Eigen::ArrayXcd prefactor, factor, scaled_x;
+    Eigen::ArrayXd scratch1, scratch2, scratch3;
+    void Resize(Eigen::Index block_size, int cols, bool real, Eigen::Index num_real_rows, int num_complex);
+  };
+  void EvaluateModalBlock(const Eigen::VectorXd& omega_rad_s, Eigen::Index f0, Eigen::Index nb, int power,
+                          const std::vector<DynamicStiffnessDerivative>* derivatives,
+                          const std::vector<int>& support, const std::vector<int>& position, FrfArray* frf,
+                          std::vector<Eigen::MatrixXcd>* d_values, BlockWorkspace* ws) const;
+
   // Workspace (reused between calls).
-  Eigen::MatrixXcd residue_, block_, coef_complex_;
-  Eigen::MatrixXd residue_real_, coef_real_, block_real_;
-  Eigen::ArrayXcd prefactor_, factor_, scaled_x_;
-  Eigen::ArrayXd scratch1_, scratch2_, scratch3_;
+  Eigen::MatrixXcd residue_;
+  Eigen::MatrixXd residue_real_;
+  std::vector<BlockWorkspace> workspaces_;  // one per worker thread; [0] also serves the direct path
 };
 
 }  // namespace stagefit::response

@@ -1,0 +1,28 @@
+#pragma once
+// Threads for the numerical kernels.
+//
+// The FRF evaluation at many frequencies is the inner loop of every fit and diagnosis; its frequency
+// blocks are independent, so it spreads them over the machine's cores. Results do not depend on the
+// number of threads: each task computes the same numbers whichever thread runs it.
+
+#include <functional>
+
+namespace stagefit {
+
+/// The number of threads a kernel may use (>= 1): the last SetMaxThreads() value, else the
+/// environment variable STAGEFIT_THREADS when it is a positive integer, else the hardware's count.
+int MaxThreads();
+
+/// Sets MaxThreads() for the whole program; 0 returns to the default above.
+void SetMaxThreads(int threads);
+
+/// Runs task(t, worker) for every t in [0, num_tasks) on min(MaxThreads(), num_tasks) threads, the
+/// calling thread being worker 0; worker < that count, and one worker runs its tasks in increasing
+/// order (worker w takes t = w, w + W, ...). Returns when all are done. An exception thrown by a task
+/// is rethrown here (the first one, after every thread has finished).
+void ParallelFor(int num_tasks, const std::function<void(int task, int worker)>& task);
+
+/// The number of workers ParallelFor(num_tasks, ...) uses.
+int WorkersFor(int num_tasks);
+
+}  // namespace stagefit
