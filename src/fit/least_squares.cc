@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 
 namespace stagefit::fit {
 namespace {
@@ -726,6 +727,37 @@ FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<Parameter
   return summary;
 }
 
+namespace {
+
+// The probe with the lowest cost below `threshold` (the first such in order on ties), or an empty
+// vector. Evaluated on up to 1 + clones threads when the problem can be cloned.
+Eigen::VectorXd BestProbe(const LeastSquaresProblem& problem, std::vector<std::unique_ptr<LeastSquaresProblem>>& clones,
+                          const std::vector<Eigen::VectorXd>& probes, double threshold) {
+  const int num_probes = static_cast<int>(probes.size());
+  const int workers = WorkersFor(num_probes);
+  while (static_cast<int>(clones.size()) < workers - 1) {
+    auto clone = problem.Clone();
+    if (!clone) break;
+    clones.push_back(std::move(clone));
+  }
+  const int used = 1 + static_cast<int>(clones.size());
+  std::vector<double> cost(num_probes, kInf);
+  std::vector<Eigen::VectorXd> r(used);
+  ParallelFor(used, [&](int worker, int) {
+    const LeastSquaresProblem& p = worker == 0 ? problem : *clones[worker - 1];
+    for (int k = worker; k < num_probes; k += used) {
+      if (p.Evaluate(probes[k], &r[worker], nullptr) && r[worker].allFinite()) cost[k] = 0.5 * r[worker].squaredNorm();
+    }
+  });
+  int best = -1;
+  for (int k = 0; k < num_probes; ++k) {
+    if (cost[k] < threshold && (best < 0 || cost[k] < cost[best])) best = k;
+  }
+  return best < 0 ? Eigen::VectorXd() : probes[best];
+}
+
+}  // namespace
+
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                            const FitOptions& options, const std::vector<SeriesPair>& series) {
   const auto t0 = Clock::now();
@@ -741,52 +773,56 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
   FitOptions restart_options = options;
   restart_options.num_starts = 1;
   int evaluations = 0;
-  Eigen::VectorXd r;
+  // One copy of the problem per extra thread, made when the first probes run.
+  std::vector<std::unique_ptr<LeastSquaresProblem>> clones;
   for (int round = 0; round < options.max_probe_rounds && summary.status != FitStatus::kFailed; ++round) {
     const Eigen::VectorXd p = summary.values();
-    double best_cost = summary.final_cost * (1.0 - options.probe_min_improvement);
-    Eigen::VectorXd best;
-    auto probe = [&](const Eigen::VectorXd& q) {
-      ++evaluations;
-      if (!problem.Evaluate(q, &r, nullptr) || !r.allFinite()) return;
-      const double cost = 0.5 * r.squaredNorm();
-      if (cost < best_cost) {
-        best_cost = cost;
-        best = q;
-      }
-    };
+    // Single-parameter probes: each factor, and back to the initial value.
+    std::vector<Eigen::VectorXd> probes;
     for (size_t i = 0; i < start.size(); ++i) {
       const ParameterSpec& s = start[i];
       if (!s.log_scale) continue;
       for (const double factor : options.probe_factors) {
         Eigen::VectorXd q = p;
         q[i] = std::clamp(p[i] * factor, s.lower, s.upper);
-        if (q[i] != p[i]) probe(q);
+        if (q[i] != p[i]) probes.push_back(q);
       }
       if (options.probe_initial_values && std::abs(std::log(p[i] / parameters[i].initial)) > std::log(2.0)) {
         Eigen::VectorXd q = p;
         q[i] = parameters[i].initial;
-        probe(q);
+        probes.push_back(q);
       }
     }
-    const bool single_found = best.size() != 0;
-    for (size_t k = 0; options.probe_series && k < series.size() && !single_found; ++k) {
-      const int a = series[k].a, b = series[k].b;
-      const ParameterSpec &sa = parameters[a], &sb = parameters[b];
-      if (!sa.log_scale || !sb.log_scale) continue;
-      const double c = 1.0 / p[a] + 1.0 / p[b];
-      const double share = 1.0 / p[a] / c;
-      const double initial_share = 1.0 / sa.initial / (1.0 / sa.initial + 1.0 / sb.initial);
-      std::vector<double> shares(std::begin(kSeriesProbeShares), std::end(kSeriesProbeShares));
-      shares.push_back(initial_share);
-      shares.push_back(1.0 - share);
-      for (const double s : shares) {
-        if (std::abs(s - share) < 0.05) continue;
+    const double threshold = summary.final_cost * (1.0 - options.probe_min_improvement);
+    evaluations += static_cast<int>(probes.size());
+    Eigen::VectorXd best = BestProbe(problem, clones, probes, threshold);
+    if (best.size() == 0 && options.probe_series) {
+      // Pairs in series: the pair's compliance kept, its share moved.
+      probes.clear();
+      for (const SeriesPair& pair : series) {
+        const int a = pair.a, b = pair.b;
+        const ParameterSpec &sa = parameters[a], &sb = parameters[b];
+        if (!sa.log_scale || !sb.log_scale) continue;
+        const double c = 1.0 / p[a] + 1.0 / p[b];
+        const double share = 1.0 / p[a] / c;
+        std::vector<double> shares(std::begin(kSeriesProbeShares), std::end(kSeriesProbeShares));
+        shares.push_back(1.0 / sa.initial / (1.0 / sa.initial + 1.0 / sb.initial));
+        shares.push_back(1.0 - share);
+        for (const double to : shares) {
+          if (std::abs(to - share) < 0.05) continue;
+          Eigen::VectorXd q = p;
+          q[a] = std::clamp(1.0 / (to * c), sa.lower, sa.upper);
+          q[b] = std::clamp(1.0 / ((1.0 - to) * c), sb.lower, sb.upper);
+          probes.push_back(q);
+        }
+        // Both back to their initial values: the pair's compliance as well as its share.
         Eigen::VectorXd q = p;
-        q[a] = std::clamp(1.0 / (s * c), sa.lower, sa.upper);
-        q[b] = std::clamp(1.0 / ((1.0 - s) * c), sb.lower, sb.upper);
-        probe(q);
+        q[a] = sa.initial;
+        q[b] = sb.initial;
+        probes.push_back(q);
       }
+      evaluations += static_cast<int>(probes.size());
+      best = BestProbe(problem, clones, probes, threshold);
     }
     if (best.size() == 0) break;
     // exp(ln p) of a parameter at its bound can land one rounding step outside it: clip every value.

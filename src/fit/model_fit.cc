@@ -49,6 +49,10 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
   return true;
 }
 
+std::unique_ptr<LeastSquaresProblem> ModelFitProblem::Clone() const {
+  return std::make_unique<ModelFitProblem>(spec_, *comparison_, parameters_);
+}
+
 std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
                                               const std::vector<model::ParameterInfo>& parameters,
                                               const std::vector<BoundRule>& bounds) {

@@ -9,6 +9,7 @@
 
 #include "fit_test_util.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/model/parameters.h"
 
@@ -140,6 +141,26 @@ TEST(FitModel, InitialValueProbesBringBackAStiffnessWalkedFarOff) {
   // 15 x the floor, and neither a factor 8 nor a series probe reaches back.
   const double stuck = FitBenchTrialWithAndWithout(116, &FitOptions::probe_initial_values);
   EXPECT_GT(stuck, 5.0) << "the case no longer has the local minimum it tests";
+}
+
+TEST(FitModel, SameResultOnOneThreadAndOnTwo) {
+  // The FRF blocks and the basin probes run on the threads; neither may change a number.
+  const std::vector<std::string> patterns = {"*.k.*"};
+  std::mt19937_64 generator(103);
+  model::ModelSpec truth = model::DefaultModelSpec();
+  testing::ScatterParametersLogNormal(&truth, patterns, kScatter, generator);
+  const auto data = MakeComplianceMeasurement(truth, LogFrequencies(10.0, 1000.0, 300), kNoise, generator);
+  FitSummary summary[2];
+  for (const int threads : {1, 2}) {
+    SetMaxThreads(threads);
+    model::ModelSpec spec = model::DefaultModelSpec();
+    const auto comparison = compare::Comparison::Create(spec, data);
+    summary[threads - 1] = FitModel(spec, comparison, model::MatchParameters(spec, patterns), FitOptions{});
+  }
+  SetMaxThreads(0);
+  EXPECT_EQ(summary[0].final_error, summary[1].final_error);
+  EXPECT_EQ(summary[0].num_evaluations, summary[1].num_evaluations);
+  EXPECT_TRUE(summary[0].values() == summary[1].values());
 }
 
 TEST(SeriesPairs, SameDofOfJointsStackedThroughImposedDofs) {

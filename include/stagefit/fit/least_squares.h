@@ -35,6 +35,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,10 @@ class LeastSquaresProblem {
   /// Returns false when r cannot be evaluated at `p` (the solver then shortens its step); throws only
   /// for broken invariants.
   virtual bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) const = 0;
+  /// An independent copy whose Evaluate() may run on another thread at the same time as this one's;
+  /// nullptr (the default) when the problem cannot be copied so: its evaluations then stay on one
+  /// thread.
+  virtual std::unique_ptr<LeastSquaresProblem> Clone() const { return nullptr; }
 };
 
 /// One free parameter of a fit.
@@ -238,8 +243,9 @@ inline constexpr double kSeriesProbeShares[] = {0.1, 0.5, 0.9};
 /// (FitOptions::probe_initial_values); when none of these lowers the cost, each pair of `series` with its compliance c kept and its share given to a set to
 /// kSeriesProbeShares, to the share of the initial values and to 1 - the current share. The fit
 /// restarts from the best probe that lowers the cost by more than probe_min_improvement and the
-/// restarted fit is kept when it ends lower. num_evaluations counts the probes; time_s covers
-/// everything.
+/// restarted fit is kept when it ends lower. The probes of a kind are evaluated on the threads of
+/// common/parallel.h when the problem has a Clone() (the choice does not depend on the thread count).
+/// num_evaluations counts the probes; time_s covers everything.
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                            const FitOptions& options, const std::vector<SeriesPair>& series = {});
 

@@ -52,6 +52,8 @@ class ModelFitProblem final : public LeastSquaresProblem {
   /// comparison.ResidualsAndJacobian(). Returns false when the model is invalid at `p` or its response
   /// is not finite (InputError / NumericalError from the comparison).
   bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) const override;
+  /// A copy with its own workspace (the comparison is shared: it is immutable).
+  std::unique_ptr<LeastSquaresProblem> Clone() const override;
 
   const std::vector<model::ParameterInfo>& parameters() const { return parameters_; }
 
