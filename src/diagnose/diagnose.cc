@@ -7,9 +7,9 @@
 #include <cstdio>
 #include <mutex>
 #include <sstream>
-#include <thread>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/measurement/projection.h"
 #include "stagefit/model/assembled_model.h"
@@ -396,10 +396,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         }
       }
     };
-    std::vector<std::thread> threads;
-    for (int t = 1; t < std::max(1, options.num_threads); ++t) threads.emplace_back(worker);
-    worker();
-    for (auto& t : threads) t.join();
+    // Each worker takes the next candidate when it is done with one (their costs differ by 10x); on
+    // the pool's threads, the FRF evaluations inside run on their caller's thread.
+    const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
+    ParallelFor(std::min<int>(threads, static_cast<int>(list.size())), [&](int, int) { worker(); });
     std::vector<Candidate> kept;
     for (size_t i = 0; i < out.size(); ++i) {
       if (ok[i]) kept.push_back(out[i]);

@@ -492,32 +492,41 @@ void FrfEvaluator::EvaluateModal(const Eigen::VectorXd& omega_rad_s, int power,
 
   const Eigen::Index block = std::min<Eigen::Index>(options_.block_size, std::max<Eigen::Index>(nf, 1));
   const int num_blocks = static_cast<int>((nf + block - 1) / block);
-  const int workers = WorkersFor(num_blocks);
-  if (static_cast<int>(workspaces_.size()) < workers) workspaces_.resize(workers);
-  for (int w = 0; w < workers; ++w) {
-    workspaces_[w].Resize(block, cols, real, real ? residue_real_.rows() : 0, num_used);
-  }
-  ParallelFor(num_blocks, [&](int task, int worker) {
+  const Eigen::Index real_rows = real ? residue_real_.rows() : 0;
+  ParallelFor(num_blocks, [&](int task, int) {
+    // Each thread keeps its block workspace from call to call, one for FRFs and one for FRFs with
+    // derivatives (their sizes differ): a fit evaluates thousands of times, and fresh megabytes per
+    // evaluation cost page faults, on a pool or diagnose thread also the return of its arena's memory.
+    thread_local BlockWorkspace workspace[2];
+    BlockWorkspace& ws = workspace[derivatives != nullptr ? 1 : 0];
+    ws.Resize(block, cols, real, real_rows, num_used);
     const Eigen::Index f0 = task * block;
     EvaluateModalBlock(omega_rad_s, f0, std::min(block, nf - f0), power, derivatives, support, position, frf,
-                       d_values, &workspaces_[worker]);
+                       d_values, &ws);
   });
 }
 
 void FrfEvaluator::BlockWorkspace::Resize(Eigen::Index block_size, int cols, bool real, Eigen::Index num_real_rows,
                                           int num_complex) {
-  block.resize(block_size, cols);
-  prefactor.resize(block_size);
-  factor.resize(block_size);
-  scaled_x.resize(block_size);
-  scratch1.resize(block_size);
-  scratch2.resize(block_size);
-  scratch3.resize(block_size);
+  // Rows only grow (the code uses the top rows of a block); columns are exact (they enter products).
+  auto fit = [](auto& m, Eigen::Index rows, Eigen::Index columns) {
+    if (m.cols() != columns || m.rows() < rows) m.resize(std::max(rows, m.cols() == columns ? m.rows() : 0), columns);
+  };
+  auto grow = [](auto& a, Eigen::Index n) {
+    if (a.size() < n) a.resize(n);
+  };
+  fit(block, block_size, cols);
+  grow(prefactor, block_size);
+  grow(factor, block_size);
+  grow(scaled_x, block_size);
+  grow(scratch1, block_size);
+  grow(scratch2, block_size);
+  grow(scratch3, block_size);
   if (real) {
-    coef_real.resize(2 * block_size, num_real_rows);
-    block_real.resize(2 * block_size, cols);
+    fit(coef_real, 2 * block_size, num_real_rows);
+    fit(block_real, 2 * block_size, cols);
   } else {
-    coef_complex.resize(block_size, num_complex);
+    fit(coef_complex, block_size, num_complex);
   }
 }
 
@@ -649,8 +658,7 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
     frf->values.resize(nf, layout.no * layout.ni);
   }
   const Eigen::Index block = std::min<Eigen::Index>(options_.block_size, std::max<Eigen::Index>(nf, 1));
-  if (workspaces_.empty()) workspaces_.resize(1);
-  BlockWorkspace& ws = workspaces_[0];
+  BlockWorkspace& ws = direct_workspace_;
   ws.block.resize(block, layout.cols());
   ws.prefactor.resize(block);
   ws.factor.resize(block);

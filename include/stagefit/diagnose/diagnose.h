@@ -54,7 +54,9 @@ struct DiagnoseOptions {
   int num_second_starts = 3;      ///< leaders refitted from the model's parameters as given
   int baseline_iterations = 50;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
-  int num_threads = 2;
+  /// Candidates fitted at the same time (each on its own thread, its FRF evaluations then on that
+  /// thread alone); 0: common/parallel.h's MaxThreads(). The ranking does not depend on it.
+  int num_threads = 0;
   std::function<void(const std::string&)> progress;  ///< one line per stage, for a terminal
 };
 

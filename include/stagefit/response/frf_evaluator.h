@@ -218,7 +218,7 @@ class FrfEvaluator {
   // Workspace (reused between calls).
   Eigen::MatrixXcd residue_;
   Eigen::MatrixXd residue_real_;
-  std::vector<BlockWorkspace> workspaces_;  // one per worker thread; [0] also serves the direct path
+  BlockWorkspace direct_workspace_;  // the direct path's (the modal path's are per thread)
 };
 
 }  // namespace stagefit::response
