@@ -359,13 +359,17 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
   }
   const double n = comparison.num_residuals();
+  // The criterion against the baseline (header): delta BIC, and a fall of the error that counts.
+  auto rescore = [&](Candidate* c) {
+    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(summary.error_baseline, 2)) + c->num_parameters * std::log(n);
+    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * summary.error_baseline;
+  };
   auto score = [&](const EffectFit& f, Candidate* c, bool refined) {
     c->effect = f.effect;
     c->with = f.effect.ToString();
     c->error_after = f.summary.final_error;
     c->num_parameters = static_cast<int>(model::FindEffectDefinition(f.effect.name).parameters.size());
-    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(summary.error_baseline, 2)) + c->num_parameters * std::log(n);
-    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * summary.error_baseline;
+    rescore(c);
     c->refined = refined;
     c->model_parameters.clear();
     for (const auto& p : f.summary.parameters) c->model_parameters[p.name] = p.value;
@@ -449,6 +453,33 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         if (r.effect.name == c.effect.name && r.effect.location == c.effect.location && r.error_after < c.error_after) c = r;
       }
     }
+    std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
+  }
+  // 3. Is the leader's effect needed? Its fit moved the model's own parameters too, and may have
+  // carried them out of a local minimum the baseline fit stopped in. Refit the model without the
+  // effect from the leader's parameters: when that lowers the baseline's error, the baseline was not
+  // at its optimum; the candidates are scored again against the better baseline (an effect-free
+  // measurement whose baseline fit stopped short otherwise credits the first effect that frees it).
+  for (int round = 0; round < 2 && !model_params.empty() && !unique.empty() && unique[0].helps; ++round) {
+    model::ModelSpec refit = summary.baseline;
+    for (const auto& p : model_params) {
+      const auto it = unique[0].model_parameters.find(p.name);
+      if (it != unique[0].model_parameters.end()) model::SetParameter(refit, p, it->second);
+    }
+    fit::FitOptions fo;
+    fo.max_iterations = options.baseline_iterations;
+    try {
+      fit::FitModel(refit, comparison, model_params, fo);
+    } catch (const std::exception&) {
+      break;
+    }
+    const double error = comparison.Error(refit);
+    if (!(error < summary.error_baseline)) break;
+    say("baseline refitted from the model parameters of " + unique[0].with +
+        Format(": error %.4f -> %.4f", summary.error_baseline, error));
+    summary.baseline = refit;
+    summary.error_baseline = error;
+    for (auto& c : unique) rescore(&c);
     std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
   }
   summary.candidates = unique;

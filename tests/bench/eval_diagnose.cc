@@ -3,7 +3,7 @@
 // the best effect comes within 1.5x of the noise floor (the truth model's own error), and the share of
 // effect-free cases where diagnose wrongly claims an effect.
 //
-// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S] [--verbose 1]
+// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S] [--verbose 1|2]  (2: the top candidates too)
 
 #include <cstdio>
 #include <cstdlib>
@@ -56,6 +56,13 @@ int main(int argc, char** argv) {
       false_claims += summary.effect_found;
       std::printf("case %3d  (no effect)  claimed=%d (%s)  error %.4f, floor %.4f  %.1f s\n", c, summary.effect_found,
                   (best.effect.name + "@" + best.effect.location).c_str(), summary.error_baseline, floor, summary.time_s);
+    }
+    if (verbose > 1) {
+      for (size_t k = 0; k < summary.candidates.size() && k < 5; ++k) {
+        const auto& cand = summary.candidates[k];
+        std::printf("      %zu. %s  error %.4f  dBIC %.1f%s\n", k + 1, cand.with.c_str(), cand.error_after, cand.delta_bic,
+                    cand.helps ? "  helps" : "");
+      }
     }
     std::fflush(stdout);
   }
