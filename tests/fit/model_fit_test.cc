@@ -40,6 +40,17 @@ Synthetic MakeSynthetic(const std::vector<std::string>& scattered, std::uint64_t
   return s;
 }
 
+// A trial of tests/bench/bench_fit (seed 100 + trial): all 27 stiffnesses scattered log-normally by
+// up to x1.6, the compliance at `num_frequencies` points from 10 Hz to 1 kHz with 1 % noise.
+Synthetic MakeBenchTrial(std::uint64_t seed, int num_frequencies = 1000) {
+  std::mt19937_64 generator(seed);
+  Synthetic s;
+  s.truth = model::DefaultModelSpec();
+  testing::ScatterParametersLogNormal(&s.truth, {"*.k.*"}, kScatter, generator);
+  s.data = MakeComplianceMeasurement(s.truth, LogFrequencies(10.0, 1000.0, num_frequencies), kNoise, generator);
+  return s;
+}
+
 TEST(FitModel, RecoversScatteredStiffnessesWithinThreeStd) {
   // The hexapod's and the spindle's stiffnesses scattered by up to a factor 1.6 (the full 27-stiffness
   // problem, with its local minima, is measured by tests/bench/bench_fit).
@@ -78,10 +89,7 @@ TEST(FitModel, BasinProbesLeaveALocalMinimumThePlainFitStopsIn) {
   // stiffness far too soft (error ~15 x the noise floor); probing each stiffness by factors 1/8 .. 8
   // finds the way out.
   const std::vector<std::string> patterns = {"*.k.*"};
-  std::mt19937_64 generator(107);
-  model::ModelSpec truth = model::DefaultModelSpec();
-  testing::ScatterParametersLogNormal(&truth, patterns, kScatter, generator);
-  const auto data = MakeComplianceMeasurement(truth, LogFrequencies(10.0, 1000.0, 1000), kNoise, generator);
+  const auto data = MakeBenchTrial(107).data;
   model::ModelSpec plain = model::DefaultModelSpec(), probed = plain;
   const auto comparison = compare::Comparison::Create(plain, data);
   const auto params = model::MatchParameters(plain, patterns);
@@ -106,10 +114,7 @@ TEST(FitModel, BasinProbesLeaveALocalMinimumThePlainFitStopsIn) {
 // every identifiable stiffness within 3 std.
 double FitBenchTrialWithAndWithout(std::uint64_t seed, bool FitOptions::*disabled) {
   const std::vector<std::string> patterns = {"*.k.*"};
-  std::mt19937_64 generator(seed);
-  model::ModelSpec truth = model::DefaultModelSpec();
-  testing::ScatterParametersLogNormal(&truth, patterns, kScatter, generator);
-  const auto data = MakeComplianceMeasurement(truth, LogFrequencies(10.0, 1000.0, 1000), kNoise, generator);
+  const auto [truth, data] = MakeBenchTrial(seed);
   model::ModelSpec without = model::DefaultModelSpec(), with = without;
   const auto comparison = compare::Comparison::Create(without, data);
   const auto params = model::MatchParameters(without, patterns);
@@ -121,7 +126,9 @@ double FitBenchTrialWithAndWithout(std::uint64_t seed, bool FitOptions::*disable
   EXPECT_LT(summary.final_error, 1.05 * floor) << summary.FullReport();
   for (size_t i = 0; i < params.size(); ++i) {
     const auto& e = summary.parameters[i];
-    if (e.identifiable) EXPECT_NEAR(e.value, model::GetParameter(truth, params[i]), 3.0 * e.std_dev) << e.name;
+    if (e.identifiable) {
+      EXPECT_NEAR(e.value, model::GetParameter(truth, params[i]), 3.0 * e.std_dev) << e.name;
+    }
   }
   return stuck.final_error / floor;
 }
@@ -146,10 +153,7 @@ TEST(FitModel, InitialValueProbesBringBackAStiffnessWalkedFarOff) {
 TEST(FitModel, SameResultOnOneThreadAndOnTwo) {
   // The FRF blocks and the basin probes run on the threads; neither may change a number.
   const std::vector<std::string> patterns = {"*.k.*"};
-  std::mt19937_64 generator(103);
-  model::ModelSpec truth = model::DefaultModelSpec();
-  testing::ScatterParametersLogNormal(&truth, patterns, kScatter, generator);
-  const auto data = MakeComplianceMeasurement(truth, LogFrequencies(10.0, 1000.0, 300), kNoise, generator);
+  const auto data = MakeBenchTrial(103, 300).data;
   FitSummary summary[2];
   for (const int threads : {1, 2}) {
     SetMaxThreads(threads);
