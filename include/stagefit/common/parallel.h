@@ -16,10 +16,11 @@ int MaxThreads();
 /// Sets MaxThreads() for the whole program; 0 returns to the default above.
 void SetMaxThreads(int threads);
 
-/// Runs task(t, worker) for every t in [0, num_tasks) on min(MaxThreads(), num_tasks) threads, the
-/// calling thread being worker 0; worker < that count, and one worker runs its tasks in increasing
-/// order (worker w takes t = w, w + W, ...). Returns when all are done. An exception thrown by a task
-/// is rethrown here (the first one, after every thread has finished).
+/// Runs task(t, worker) for every t in [0, num_tasks) on W = WorkersFor(num_tasks) threads of a pool
+/// kept for the program's life, the calling thread being worker 0: worker w takes t = w, w + W, ...
+/// in increasing order. Called from inside a task, or while another thread's ParallelFor holds the
+/// pool, it runs every task on the calling thread as worker 0. Returns when all are done. An
+/// exception thrown by a task is rethrown here (the first one, after every thread has finished).
 void ParallelFor(int num_tasks, const std::function<void(int task, int worker)>& task);
 
 /// The number of workers ParallelFor(num_tasks, ...) uses.

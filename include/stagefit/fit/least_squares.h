@@ -240,10 +240,11 @@ inline constexpr double kSeriesProbeShares[] = {0.1, 0.5, 0.9};
 
 /// Solve(), then basin probes (up to max_probe_rounds): from the kept optimum, each log-scale parameter
 /// in turn times each of FitOptions::probe_factors, the others kept, and set back to its initial value
-/// (FitOptions::probe_initial_values); when none of these lowers the cost, each pair of `series` with its compliance c kept and its share given to a set to
-/// kSeriesProbeShares, to the share of the initial values and to 1 - the current share. The fit
-/// restarts from the best probe that lowers the cost by more than probe_min_improvement and the
-/// restarted fit is kept when it ends lower. The probes of a kind are evaluated on the threads of
+/// (FitOptions::probe_initial_values). When none of these lowers the cost, the series probes
+/// (FitOptions::probe_series): each pair of `series` with its compliance c kept and a's share set to
+/// kSeriesProbeShares, to the share of the initial values and to 1 - the current share; and the pair
+/// set back to its initial values. The fit restarts from the best probe that lowers the cost by more
+/// than probe_min_improvement and the restarted fit is kept when it ends lower. The probes of a kind are evaluated on the threads of
 /// common/parallel.h when the problem has a Clone() (the choice does not depend on the thread count).
 /// num_evaluations counts the probes; time_s covers everything.
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,

@@ -75,10 +75,9 @@ std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
                                               const std::vector<BoundRule>& bounds = {});
 
 /// The stiffness parameters of `parameters` that act in series (SolveWithProbes' series probes): the
-/// same DoF of two joints one above the other on a chain (the upper joint's parent is the lower
-/// joint's child, the only joint on it; joints whose DoF is imposed, or whose DoF stiffness is not
-/// fitted, are walked through only when imposed), with parallel joint axes. The chain of joints
-/// passes through each body at most once.
+/// same DoF of two joints one above the other on a chain, with parallel joint axes. The upper joint's
+/// parent is the lower joint's child and the only joint on that body; a joint whose DoF is imposed is
+/// walked through, one whose DoF is free but not fitted ends the chain.
 std::vector<SeriesPair> SeriesPairs(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& parameters);
 
 /// Fits `parameters` of `spec` to the measurement of `comparison`, with the series probes of
