@@ -26,6 +26,10 @@ void CheckOptions(const ModeIdentificationOptions& options) {
     throw InputError("mode identification: rotation length " + std::to_string(options.rotation_length_m) +
                      " m, expected > 0");
   }
+  if (!(options.noise_prominence >= 0.0) || !std::isfinite(options.noise_prominence)) {
+    throw InputError("mode identification: noise prominence " + std::to_string(options.noise_prominence) +
+                     ", expected a finite value >= 0");
+  }
   if (!(options.min_mac >= 0.0 && options.min_mac <= 1.0)) {
     throw InputError("mode identification: min MAC " + std::to_string(options.min_mac) +
                      ", expected a value in [0, 1]");
@@ -64,12 +68,16 @@ Eigen::MatrixXd CalcCmif(const std::vector<Eigen::MatrixXcd>& frf) {
 
 std::vector<IdentifiedMode> IdentifyModes(const Eigen::VectorXd& frequency_hz,
                                           const std::vector<Eigen::MatrixXcd>& frf,
-                                          const ModeIdentificationOptions& options) {
+                                          const ModeIdentificationOptions& options, const Eigen::VectorXd& snr) {
   CheckOptions(options);
   const int nf = static_cast<int>(frequency_hz.size());
   if (static_cast<int>(frf.size()) != nf) {
     throw InputError("mode identification: " + std::to_string(frf.size()) + " FRF matrices for " +
                      std::to_string(nf) + " frequencies, expected one per frequency");
+  }
+  if (snr.size() != 0 && snr.size() != nf) {
+    throw InputError("mode identification: " + std::to_string(snr.size()) + " SNR values for " +
+                     std::to_string(nf) + " frequencies, expected one per frequency or none");
   }
   std::vector<IdentifiedMode> modes;
   if (nf < 3) return modes;
@@ -88,6 +96,7 @@ std::vector<IdentifiedMode> IdentifyModes(const Eigen::VectorXd& frequency_hz,
     }
     const double base = std::max(left_base, right_base);
     if (!(base > 0.0) || s(k) / base < options.min_prominence) continue;
+    if (snr.size() != 0 && !(std::log(s(k) / base) >= options.noise_prominence / snr(k))) continue;
 
     IdentifiedMode mode;
     mode.frequency_index = k;
@@ -144,8 +153,24 @@ ModePairing PairModes(const Comparison& comparison, const std::vector<Eigen::Mat
   ModePairing pairing;
   const double L = options.rotation_length_m;
   std::vector<Eigen::MatrixXcd> corrected;
-  pairing.measured =
-      IdentifyModes(comparison.frequency_hz(), Scaled(comparison, comparison.MeasuredFor(spec, &corrected), L), options);
+  const std::vector<Eigen::MatrixXcd> measured = Scaled(comparison, comparison.MeasuredFor(spec, &corrected), L);
+  Eigen::VectorXd snr;  // of the measured sigma_1: the SNR of the used element that dominates it
+  if (comparison.weights_are_snr()) {
+    snr.resize(comparison.num_frequencies());
+    for (int k = 0; k < comparison.num_frequencies(); ++k) {
+      const Eigen::MatrixXd& w = comparison.weights()[k];
+      double largest = -1.0;
+      snr(k) = 0.0;
+      for (const ElementIndex& e : comparison.used_elements()) {
+        const double magnitude = std::abs(measured[k](e.output, e.input));
+        if (w(e.output, e.input) > 0.0 && magnitude > largest) {
+          largest = magnitude;
+          snr(k) = w(e.output, e.input);
+        }
+      }
+    }
+  }
+  pairing.measured = IdentifyModes(comparison.frequency_hz(), measured, options, snr);
   pairing.model = IdentifyModes(comparison.frequency_hz(), Scaled(comparison, model_frf, L), options);
 
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");

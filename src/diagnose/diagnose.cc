@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include "stagefit/common/error.h"
@@ -289,6 +290,31 @@ std::vector<std::string> AddRigidConsistency(const measurement::FrfData& data, c
   return suspect;
 }
 
+/// `data` at every k-th of its frequencies within [fmin_hz, fmax_hz], k the smallest step that leaves at
+/// most `max_frequencies` of them; nullopt when the band holds no more than that (or max_frequencies <= 0).
+std::optional<measurement::FrfData> ThinFrequencies(const measurement::FrfData& data, double fmin_hz, double fmax_hz,
+                                                    int max_frequencies) {
+  std::vector<int> in_band;
+  for (int f = 0; f < data.num_frequencies(); ++f) {
+    if (data.frequency_hz(f) >= fmin_hz && data.frequency_hz(f) <= fmax_hz) in_band.push_back(f);
+  }
+  const int count = static_cast<int>(in_band.size());
+  if (max_frequencies <= 0 || count <= max_frequencies) return std::nullopt;
+  const int step = (count + max_frequencies - 1) / max_frequencies;
+  std::vector<int> kept;
+  for (int k = 0; k < count; k += step) kept.push_back(in_band[k]);
+  measurement::FrfData thinned = data;
+  thinned.frequency_hz.resize(static_cast<int>(kept.size()));
+  thinned.frf.clear();
+  thinned.coherence.clear();
+  for (size_t k = 0; k < kept.size(); ++k) {
+    thinned.frequency_hz(static_cast<int>(k)) = data.frequency_hz(kept[k]);
+    thinned.frf.push_back(data.frf[kept[k]]);
+    if (data.has_coherence()) thinned.coherence.push_back(data.coherence[kept[k]]);
+  }
+  return thinned;
+}
+
 }  // namespace
 
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
@@ -303,6 +329,7 @@ EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& com
   options.function_tolerance = 1e-8;
   options.initial_trust_region_radius = kDiagnoseTrustRegionRadius;
   options.projected_line_search = true;  // a screening fit has 4 iterations
+  options.analyse_optimum = false;        // candidates are ranked by their error alone
   EffectFit result;
   result.summary = probe_basins ? fit::SolveWithProbes(problem, specs, options) : fit::Solve(problem, specs, options);
   Eigen::VectorXd p = result.summary.values();
@@ -334,13 +361,44 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   say(Format("baseline: error %.4f -> %.4f after fitting the model's own parameters", summary.error_initial,
              summary.error_baseline));
 
+  // The grid the candidates are searched on (DiagnoseOptions::max_search_frequencies): a thinned one
+  // ranks them as well at a fraction of the cost; the leaders are finished and every candidate is scored
+  // on all frequencies.
+  std::optional<compare::Comparison> thinned_comparison;
+  if (auto thinned = ThinFrequencies(measurement, options.comparison.fmin_hz, options.comparison.fmax_hz,
+                                     options.max_search_frequencies)) {
+    try {
+      thinned_comparison = compare::Comparison::Create(spec, *thinned, options.comparison);
+    } catch (const InputError&) {
+      // The thinned grid cannot be compared on its own (no significant element left): search on all.
+    }
+  }
+  const compare::Comparison& search = thinned_comparison ? *thinned_comparison : comparison;
+
   // 2. Candidates: every effect at every location (extra bodies from five starting local modes).
   // Sensor-geometry candidates at the channels the rigid-body consistency of the data singles out
   // (all of them in raw space, where each channel is compared on its own).
   const std::vector<std::string> suspect = AddRigidConsistency(measurement, comparison, &summary);
   const std::vector<std::string> channels =
       comparison.space() == compare::ComparisonSpace::kRaw ? comparison.CorrectableChannels() : suspect;
+  //
+  // An effect that adds mass (payload, extra body) is also started from the model's parameters as
+  // given: the baseline's stiffnesses have softened to mimic the missing mass, so that the effect
+  // added to them overshoots (the error rises above the baseline's) and its fit sheds the mass again.
+  // An extra body starts 0.1 m above its host's centre of mass: at the same height the body's
+  // coupling to the host's rocking is stationary in z, and the fit did not move z away from there.
+  std::map<std::string, double> as_given;
+  for (const auto& p : model::ListParameters(spec)) as_given[p.name] = model::GetParameter(spec, p);
   std::vector<model::Effect> tries;
+  std::vector<std::map<std::string, double>> try_starts;  // {} = the baseline's parameters
+  auto add_try = [&](const model::Effect& e) {
+    tries.push_back(e);
+    try_starts.push_back({});
+    if (e.name == "payload" || e.name == "extra-body") {
+      tries.push_back(e);
+      try_starts.push_back(as_given);
+    }
+  };
   for (auto e : model::EnumerateEffects(summary.baseline, channels)) {
     if (!options.effects.empty() &&
         std::find(options.effects.begin(), options.effects.end(), e.name) == options.effects.end()) {
@@ -348,37 +406,45 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     if (e.name == "gyroscopic") continue;  // spin is set by the experiment, not fitted from hammer data
     if (e.name == "extra-body") {
+      e.parameters["z"] = 0.1;
       for (double f : {40.0, 70.0, 120.0, 200.0, 320.0}) {
         const double w = 2 * M_PI * f;
         e.parameters["k"] = e.parameters["mass"] * w * w;
         e.parameters["kr"] = e.parameters["mass"] * 0.0025 * w * w;
-        tries.push_back(e);
+        add_try(e);
       }
     } else {
-      tries.push_back(e);
+      add_try(e);
     }
   }
-  const double n = comparison.num_residuals();
-  // The criterion against the baseline (header): delta BIC, and a fall of the error that counts.
-  auto rescore = [&](Candidate* c) {
-    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(summary.error_baseline, 2)) + c->num_parameters * std::log(n);
-    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * summary.error_baseline;
+  // The criterion against the baseline (header): delta BIC, and a fall of the error that counts. A
+  // candidate's error is compared with the baseline's on the same grid: `scale` holds that grid's
+  // number of residuals and baseline error.
+  struct Scale {
+    double n = 0;
+    double error_baseline = 0;
   };
-  auto score = [&](const EffectFit& f, Candidate* c, bool refined) {
+  const Scale search_scale{static_cast<double>(search.num_residuals()), search.Error(summary.baseline)};
+  auto rescore = [&](Candidate* c, const Scale& scale) {
+    const double n = scale.n;
+    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(scale.error_baseline, 2)) + c->num_parameters * std::log(n);
+    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * scale.error_baseline;
+  };
+  auto full_scale = [&] { return Scale{static_cast<double>(comparison.num_residuals()), summary.error_baseline}; };
+  auto score = [&](const EffectFit& f, Candidate* c, bool refined, const Scale& scale) {
     c->effect = f.effect;
     c->with = f.effect.ToString();
     c->error_after = f.summary.final_error;
     c->num_parameters = static_cast<int>(model::FindEffectDefinition(f.effect.name).parameters.size());
-    rescore(c);
+    rescore(c, scale);
     c->refined = refined;
     c->model_parameters.clear();
     for (const auto& p : f.summary.parameters) c->model_parameters[p.name] = p.value;
   };
-  // Fits every effect of `list` with the model's parameters; `starts` (empty, or one per effect) holds
-  // the model parameters to start from (default: the baseline's).
+  // Fits every effect of `list` with the model's parameters against `on`; `starts` (empty, or one per
+  // effect) holds the model parameters to start from (default: the baseline's).
   auto run = [&](const std::vector<model::Effect>& list, const std::vector<std::map<std::string, double>>& starts,
-                 int iterations, bool refined) {
-    const bool probe_basins = refined;
+                 int iterations, bool refined, bool probe_basins, const compare::Comparison& on, const Scale& scale) {
     std::vector<Candidate> out(list.size());
     std::vector<bool> ok(list.size(), false);
     std::atomic<size_t> next{0};
@@ -392,9 +458,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
               if (it != starts[i].end()) model::SetParameter(base, p, it->second);
             }
           }
-          EffectFit f = FitEffect(base, comparison, list[i], options.params, iterations, probe_basins);
+          EffectFit f = FitEffect(base, on, list[i], options.params, iterations, probe_basins);
           if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) continue;
-          score(f, &out[i], refined);
+          score(f, &out[i], refined, scale);
           ok[i] = true;
         } catch (const std::exception&) {
         }
@@ -410,8 +476,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     return kept;
   };
-  say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
-  std::vector<Candidate> screened = run(tries, {}, options.screening_iterations, false);
+  if (thinned_comparison) {
+    say(Format("screening %.0f candidates on %.0f of the %.0f frequencies", static_cast<double>(tries.size()),
+               search.num_frequencies(), comparison.num_frequencies()));
+  } else {
+    say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
+  }
+  std::vector<Candidate> screened = run(tries, try_starts, options.screening_iterations, false, false, search, search_scale);
   std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return a.error_after < b.error_after; });
   // Keep the best start per (effect, location), then refine the most promising ones.
   std::vector<Candidate> unique;
@@ -428,7 +499,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     refine_starts.push_back(unique[i].model_parameters);
   }
   say(Format("refining the best %.0f", static_cast<double>(refine.size())));
-  std::vector<Candidate> refined = run(refine, refine_starts, options.refine_iterations, true);
+  std::vector<Candidate> refined = run(refine, refine_starts, options.refine_iterations, true, true, search, search_scale);
   for (auto& c : unique) {
     for (const auto& r : refined) {
       if (r.effect.name == c.effect.name && r.effect.location == c.effect.location && r.error_after <= c.error_after) c = r;
@@ -441,14 +512,50 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   {
     std::vector<model::Effect> leaders;
     std::vector<std::map<std::string, double>> given;
-    std::map<std::string, double> as_given;
-    for (const auto& p : model::ListParameters(spec)) as_given[p.name] = model::GetParameter(spec, p);
     for (size_t i = 0; i < unique.size() && static_cast<int>(i) < options.num_second_starts; ++i) {
       leaders.push_back(unique[i].effect);
       given.push_back(as_given);
     }
     say(Format("second start for the best %.0f", static_cast<double>(leaders.size())));
-    for (const auto& r : run(leaders, given, options.refine_iterations, true)) {
+    for (const auto& r : run(leaders, given, options.refine_iterations, true, true, search, search_scale)) {
+      for (auto& c : unique) {
+        if (r.effect.name == c.effect.name && r.effect.location == c.effect.location && r.error_after < c.error_after) c = r;
+      }
+    }
+    std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
+  }
+  // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
+  // and the leaders are finished there (their optimum moves a little with the grid).
+  if (thinned_comparison) {
+    std::vector<bool> ok(unique.size(), false);
+    const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
+    std::atomic<size_t> next{0};
+    ParallelFor(std::min<int>(threads, static_cast<int>(unique.size())), [&](int, int) {
+      for (size_t i = next++; i < unique.size(); i = next++) {
+        try {
+          unique[i].error_after = comparison.Error(ApplyCandidate(summary, unique[i]));
+          ok[i] = std::isfinite(unique[i].error_after);
+        } catch (const std::exception&) {
+        }
+      }
+    });
+    std::vector<Candidate> scored;
+    for (size_t i = 0; i < unique.size(); ++i) {
+      if (!ok[i]) continue;
+      scored.push_back(unique[i]);
+      rescore(&scored.back(), full_scale());
+    }
+    unique = scored;
+    std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
+    std::vector<model::Effect> leaders;
+    std::vector<std::map<std::string, double>> starts;
+    for (size_t i = 0; i < unique.size() && static_cast<int>(i) < options.num_finished; ++i) {
+      leaders.push_back(unique[i].effect);
+      starts.push_back(unique[i].model_parameters);
+    }
+    say(Format("finishing the best %.0f on all %.0f frequencies", static_cast<double>(leaders.size()),
+               comparison.num_frequencies()));
+    for (const auto& r : run(leaders, starts, options.finish_iterations, true, false, comparison, full_scale())) {
       for (auto& c : unique) {
         if (r.effect.name == c.effect.name && r.effect.location == c.effect.location && r.error_after < c.error_after) c = r;
       }
@@ -479,7 +586,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         Format(": error %.4f -> %.4f", summary.error_baseline, error));
     summary.baseline = refit;
     summary.error_baseline = error;
-    for (auto& c : unique) rescore(&c);
+    for (auto& c : unique) rescore(&c, full_scale());
     std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
   }
   summary.candidates = unique;

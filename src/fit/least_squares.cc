@@ -715,7 +715,7 @@ FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<Parameter
     e.log_scale = parameters[i].log_scale;
     summary.parameters.push_back(e);
   }
-  if (summary.status != FitStatus::kFailed) {
+  if (summary.status != FitStatus::kFailed && options.analyse_optimum) {
     AnalyseOptimum(*cost, map, best.theta, options, &summary);
   } else {
     summary.covariance = Eigen::MatrixXd::Constant(n, n, kNaN);

@@ -3,7 +3,8 @@
 // the best effect comes within 1.5x of the noise floor (the truth model's own error), and the share of
 // effect-free cases where diagnose wrongly claims an effect.
 //
-// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S] [--verbose 1|2]  (2: the top candidates too)
+// Usage: eval_diagnose [--cases N] [--effect-free M] [--first-seed S] [--points F] [--verbose 1|2]
+//   --points: frequencies per measurement (default 300); --verbose 2 lists the top candidates too.
 
 #include <cstdio>
 #include <cstdlib>
@@ -19,13 +20,14 @@
 int main(int argc, char** argv) {
   using namespace stagefit;
   KeepFreedMemory();  // as the stagefit program does
-  int cases = 30, effect_free = 10, verbose = 0;
+  int cases = 30, effect_free = 10, verbose = 0, points = 300;
   uint64_t first_seed = 1000;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--cases")) cases = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--verbose")) verbose = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--points")) points = std::atoi(argv[i + 1]);
   }
   const model::ModelSpec nominal = model::DefaultModelSpec();
   int ranked_first = 0, near_floor = 0, false_claims = 0;
@@ -34,6 +36,7 @@ int main(int argc, char** argv) {
     const bool with_effect = c < cases;
     synthetic::HiddenEffectOptions options;
     options.num_effects = with_effect ? 1 : 0;
+    options.num_frequencies = points;
     auto hidden = synthetic::MakeHiddenEffectCase(nominal, first_seed + c, options);
     diagnose::DiagnoseOptions diagnose_options;
     if (verbose) diagnose_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };

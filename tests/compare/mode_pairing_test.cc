@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <complex>
+#include <random>
 
 #include "compare_test_util.h"
 #include "stagefit/common/error.h"
@@ -49,6 +50,28 @@ TEST(IdentifyModes, IgnoresPeaksBelowTheProminenceThreshold) {
   EXPECT_TRUE(IdentifyModes(f, H, options).empty());
   options.min_prominence = 0.5;
   EXPECT_THROW(IdentifyModes(f, H, options), InputError);
+}
+
+TEST(IdentifyModes, DropsPeaksTheNoiseCanMakeWhenGivenTheSnr) {
+  // A fine grid whose low end is noisy (SNR 4, as an accelerance's low end), the mode at 100 Hz clean.
+  const int nf = 1000;
+  Eigen::VectorXd f(nf), snr(nf);
+  for (int k = 0; k < nf; ++k) f(k) = 10.0 * std::pow(20.0, k / (nf - 1.0));  // 10-200 Hz
+  auto H = SdofReceptance(f, 100.0, 0.02);
+  std::mt19937_64 generator(3);
+  std::normal_distribution<double> normal;
+  for (int k = 0; k < nf; ++k) {
+    snr(k) = f(k) < 40.0 ? 4.0 : 30.0;
+    const double sigma = 1.0 / snr(k) / std::sqrt(2.0);  // per real and imaginary part
+    H[k](0, 0) *= std::complex<double>(1.0 + sigma * normal(generator), sigma * normal(generator));
+  }
+  // The noise alone makes peaks of sqrt(2) prominence...
+  ASSERT_GT(IdentifyModes(f, H).size(), 3u);
+  // ...which the noise rule drops, keeping the mode.
+  const auto modes = IdentifyModes(f, H, {}, snr);
+  ASSERT_EQ(modes.size(), 1u);
+  EXPECT_NEAR(modes[0].frequency_hz, 100.0, 1.0);
+  EXPECT_THROW(IdentifyModes(f, H, {}, snr.head(10)), InputError);
 }
 
 TEST(CalcMac, IsOneForParallelAndZeroForOrthogonalVectors) {

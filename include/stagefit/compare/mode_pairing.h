@@ -10,6 +10,13 @@
 //    peak over the higher of the two bases (the lowest sigma_1 between the peak and the next higher
 //    sample on each side, or the grid's end), is at least min_prominence (default sqrt(2): the
 //    half-power points then exist on both sides).
+//  - With a noise estimate (the amplitude SNR of sigma_1 at each frequency), a peak's prominence must
+//    also exceed exp(noise_prominence / SNR) at the peak: where the data are noisy (the low end of an
+//    accelerance), the noise alone makes peaks of sqrt(2) prominence, dozens of them on a fine grid.
+//    1 / SNR is the standard deviation of ln sigma_1; a noise peak and its base are the extremes of
+//    up to hundreds of samples, about three standard deviations up and down.
+//    PairModes() takes the SNR of the measured sigma_1 at a frequency as the weight (SNR) of the used
+//    element that dominates it there (the largest scaled |H|), when the comparison's weights are SNRs.
 //  - Frequency: the vertex of the parabola through ln sigma_1 at the peak and its two neighbours, on
 //    a ln f axis.
 //  - Damping: half-power bandwidth, zeta = (f_2 - f_1) / (2 f_n), f_1 and f_2 where sigma_1 crosses
@@ -41,6 +48,9 @@ struct ModeIdentificationOptions {
   double rotation_length_m = 0.1;
   /// Minimum MAC of a pair, in [0, 1].
   double min_mac = 0.6;
+  /// With a noise estimate: a peak's prominence must exceed exp(noise_prominence / SNR) (header):
+  /// 6 standard deviations of ln sigma_1.
+  double noise_prominence = 6.0;
 };
 
 /// A mode found as a CMIF peak.
@@ -62,11 +72,13 @@ struct IdentifiedMode {
 Eigen::MatrixXd CalcCmif(const std::vector<Eigen::MatrixXcd>& frf);
 
 /// Modes of `frf` at `frequency_hz` (Hz, strictly increasing, Nf >= 3 for any peak), by the rules of
-/// the header, ascending in frequency. Throws InputError when the sizes disagree or an option is out
-/// of range.
+/// the header, ascending in frequency. `snr` (empty, or Nf values > 0): the amplitude SNR of sigma_1
+/// at each frequency, for the noise rule of the header. Throws InputError when the sizes disagree or
+/// an option is out of range.
 std::vector<IdentifiedMode> IdentifyModes(const Eigen::VectorXd& frequency_hz,
                                           const std::vector<Eigen::MatrixXcd>& frf,
-                                          const ModeIdentificationOptions& options = {});
+                                          const ModeIdentificationOptions& options = {},
+                                          const Eigen::VectorXd& snr = Eigen::VectorXd());
 
 /// MAC(a, b) = |a^H b|^2 / ((a^H a)(b^H b)), in [0, 1]; 0 when either vector is zero.
 double CalcMac(const Eigen::VectorXcd& a, const Eigen::VectorXcd& b);

@@ -228,6 +228,8 @@ class Comparison {
   std::vector<std::string> CorrectableChannels() const;
   /// The weight w of every point (num_frequencies() matrices num_outputs x num_inputs; 0 = unused).
   const std::vector<Eigen::MatrixXd>& weights() const { return weights_; }
+  /// Whether the weights are the points' signal-to-noise ratios (from the coherence), rather than 1.
+  bool weights_are_snr() const { return weights_are_snr_; }
   /// kappa of every element (num_outputs x num_inputs).
   const Eigen::MatrixXd& significance() const { return significance_; }
   /// The used elements, output-major (o ascending, then i).
@@ -276,6 +278,7 @@ class Comparison {
   std::vector<ElementIndex> used_elements_;
   std::vector<Point> points_;
   double weight_norm_ = 1.0;  // sqrt(sum w^2)
+  bool weights_are_snr_ = false;
   int bands_per_octave_ = 3;
   Eigen::Vector3d p_WXo_ = Eigen::Vector3d::Zero();
   std::vector<model::InputSpec> model_inputs_;

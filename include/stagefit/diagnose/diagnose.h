@@ -53,6 +53,12 @@ struct DiagnoseOptions {
   int refine_iterations = 30;
   int num_second_starts = 3;      ///< leaders refitted from the model's parameters as given
   int baseline_iterations = 50;
+  /// The candidates are searched (screening, refinement, second starts) on at most this many of the
+  /// band's frequencies, every k-th of them; the leaders are then finished on all of them with
+  /// `finish_iterations`, and every candidate is scored on all of them. 0: search on all.
+  int max_search_frequencies = 400;
+  int num_finished = 3;         ///< leaders finished on all frequencies after a thinned search
+  int finish_iterations = 4;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
   /// Candidates fitted at the same time (each on its own thread, its FRF evaluations then on that
   /// thread alone); 0: common/parallel.h's MaxThreads(). The ranking does not depend on it.

@@ -141,6 +141,10 @@ struct FitOptions {
   int num_starts = 1;
   double start_factor = 1.6;
   std::uint64_t seed = 1;
+  /// After the fit: the covariance, correlation, standard deviations and identifiability warnings
+  /// (one more Jacobian evaluation). Without it these are NaN and no warnings are given; a caller
+  /// that only ranks fits by their error (the diagnosis' candidates) saves the evaluation.
+  bool analyse_optimum = true;
   /// Identifiability thresholds (see the header).
   double min_relative_sensitivity = 1e-3;
   double max_correlation = 0.95;
