@@ -446,7 +446,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   auto run = [&](const std::vector<model::Effect>& list, const std::vector<std::map<std::string, double>>& starts,
                  int iterations, bool refined, bool probe_basins, const compare::Comparison& on, const Scale& scale) {
     std::vector<Candidate> out(list.size());
-    std::vector<bool> ok(list.size(), false);
+    std::vector<char> ok(list.size(), 0);  // not vector<bool>: its elements share words, written from several threads
     std::atomic<size_t> next{0};
     auto worker = [&] {
       for (size_t i = next++; i < list.size(); i = next++) {
@@ -527,7 +527,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
   // and the leaders are finished there (their optimum moves a little with the grid).
   if (thinned_comparison) {
-    std::vector<bool> ok(unique.size(), false);
+    std::vector<char> ok(unique.size(), 0);  // not vector<bool>: its elements share words, written from several threads
     const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
     std::atomic<size_t> next{0};
     ParallelFor(std::min<int>(threads, static_cast<int>(unique.size())), [&](int, int) {
