@@ -381,7 +381,6 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   const std::vector<std::string> suspect = AddRigidConsistency(measurement, comparison, &summary);
   const std::vector<std::string> channels =
       comparison.space() == compare::ComparisonSpace::kRaw ? comparison.CorrectableChannels() : suspect;
-  //
   // An effect that adds mass (payload, extra body) is also started from the model's parameters as
   // given: the baseline's stiffnesses have softened to mimic the missing mass, so that the effect
   // added to them overshoots (the error rises above the baseline's) and its fit sheds the mass again.
@@ -441,35 +440,38 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     c->model_parameters.clear();
     for (const auto& p : f.summary.parameters) c->model_parameters[p.name] = p.value;
   };
+  // task(i) for i in [0, count) on the common pool: each worker takes the next index when it is done
+  // with one (candidates' costs differ by 10x); on the pool's threads, the FRF evaluations inside run
+  // on their caller's thread.
+  auto for_each_candidate = [&](size_t count, const std::function<void(size_t)>& task) {
+    std::atomic<size_t> next{0};
+    const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
+    ParallelFor(std::min<int>(threads, static_cast<int>(count)), [&](int, int) {
+      for (size_t i = next++; i < count; i = next++) task(i);
+    });
+  };
   // Fits every effect of `list` with the model's parameters against `on`; `starts` (empty, or one per
   // effect) holds the model parameters to start from (default: the baseline's).
   auto run = [&](const std::vector<model::Effect>& list, const std::vector<std::map<std::string, double>>& starts,
                  int iterations, bool refined, bool probe_basins, const compare::Comparison& on, const Scale& scale) {
     std::vector<Candidate> out(list.size());
     std::vector<char> ok(list.size(), 0);  // not vector<bool>: its elements share words, written from several threads
-    std::atomic<size_t> next{0};
-    auto worker = [&] {
-      for (size_t i = next++; i < list.size(); i = next++) {
-        try {
-          model::ModelSpec base = summary.baseline;
-          if (!starts.empty()) {
-            for (const auto& p : model::ListParameters(base)) {
-              auto it = starts[i].find(p.name);
-              if (it != starts[i].end()) model::SetParameter(base, p, it->second);
-            }
+    for_each_candidate(list.size(), [&](size_t i) {
+      try {
+        model::ModelSpec base = summary.baseline;
+        if (!starts.empty()) {
+          for (const auto& p : model::ListParameters(base)) {
+            auto it = starts[i].find(p.name);
+            if (it != starts[i].end()) model::SetParameter(base, p, it->second);
           }
-          EffectFit f = FitEffect(base, on, list[i], options.params, iterations, probe_basins);
-          if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) continue;
-          score(f, &out[i], refined, scale);
-          ok[i] = true;
-        } catch (const std::exception&) {
         }
+        EffectFit f = FitEffect(base, on, list[i], options.params, iterations, probe_basins);
+        if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) return;
+        score(f, &out[i], refined, scale);
+        ok[i] = true;
+      } catch (const std::exception&) {
       }
-    };
-    // Each worker takes the next candidate when it is done with one (their costs differ by 10x); on
-    // the pool's threads, the FRF evaluations inside run on their caller's thread.
-    const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
-    ParallelFor(std::min<int>(threads, static_cast<int>(list.size())), [&](int, int) { worker(); });
+    });
     std::vector<Candidate> kept;
     for (size_t i = 0; i < out.size(); ++i) {
       if (ok[i]) kept.push_back(out[i]);
@@ -528,15 +530,11 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // and the leaders are finished there (their optimum moves a little with the grid).
   if (thinned_comparison) {
     std::vector<char> ok(unique.size(), 0);  // not vector<bool>: its elements share words, written from several threads
-    const int threads = options.num_threads > 0 ? options.num_threads : MaxThreads();
-    std::atomic<size_t> next{0};
-    ParallelFor(std::min<int>(threads, static_cast<int>(unique.size())), [&](int, int) {
-      for (size_t i = next++; i < unique.size(); i = next++) {
-        try {
-          unique[i].error_after = comparison.Error(ApplyCandidate(summary, unique[i]));
-          ok[i] = std::isfinite(unique[i].error_after);
-        } catch (const std::exception&) {
-        }
+    for_each_candidate(unique.size(), [&](size_t i) {
+      try {
+        unique[i].error_after = comparison.Error(ApplyCandidate(summary, unique[i]));
+        ok[i] = std::isfinite(unique[i].error_after);
+      } catch (const std::exception&) {
       }
     });
     std::vector<Candidate> scored;
