@@ -148,6 +148,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   };
   const double cap = options.coherence_weight_cap;
   c.weight_cap_ = cap;
+  c.min_element_snr_ = options.min_element_snr;
   c.weights_.assign(nf, Eigen::MatrixXd());
   c.measured_.assign(nf, Eigen::MatrixXcd());
 
@@ -388,10 +389,26 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
     const ElementIndex idx = used_elements_[pt.element];
     const double sigma = noise_sigma_[pt.frequency](idx.output, idx.input);
     const double magnitude = std::abs((*side->values)[pt.frequency](idx.output, idx.input));
-    const double w = sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
-    side->weights[p] = w;
-    sum_w2 += w * w;
+    side->weights[p] = sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
   }
+  // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
+  // Create(): it stops counting (header). Points are element-major, so each element's are contiguous.
+  std::vector<double> element_weights;
+  for (size_t first = 0; first < points_.size();) {
+    size_t last = first;
+    while (last < points_.size() && points_[last].element == points_[first].element) ++last;
+    const ElementIndex idx = used_elements_[points_[first].element];
+    if (idx.output != idx.input && min_element_snr_ > 0.0) {
+      element_weights.assign(side->weights.begin() + first, side->weights.begin() + last);
+      const size_t mid = element_weights.size() / 2;
+      std::nth_element(element_weights.begin(), element_weights.begin() + mid, element_weights.end());
+      if (element_weights[mid] < min_element_snr_) {
+        std::fill(side->weights.begin() + first, side->weights.begin() + last, 0.0);
+      }
+    }
+    first = last;
+  }
+  for (double w : side->weights) sum_w2 += w * w;
   side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
 }
 
@@ -587,7 +604,7 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     BandError be;
     be.band = bands[b];
     be.num_points = count.col(b).sum();
-    be.error = std::sqrt(num.col(b).sum() / den.col(b).sum());
+    be.error = den.col(b).sum() > 0 ? std::sqrt(num.col(b).sum() / den.col(b).sum()) : 0.0;
     be.share = total_num > 0 ? num.col(b).sum() / total_num : 0.0;
     result.bands.push_back(be);
   }
@@ -596,7 +613,7 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     for (int j = 0; j < static_cast<int>(kept.size()); ++j) {
       const int b = kept[j];
       result.element_band_error(k, j) =
-          count(k, b) > 0 ? std::sqrt(num(k, b) / den(k, b)) : std::numeric_limits<double>::quiet_NaN();
+          count(k, b) > 0 && den(k, b) > 0 ? std::sqrt(num(k, b) / den(k, b)) : std::numeric_limits<double>::quiet_NaN();
     }
   }
   return result;

@@ -21,8 +21,12 @@
 //    the declared geometry, so that errors with and without a correction are sums over the same points.
 //    The weight of a point is its SNR again (below), |H_X| re-projected over the noise propagated at
 //    Create(): an element that was significant only through the geometry error (cross-talk a turned
-//    sensor put there) falls to its true SNR and stops counting. A wrong sensor direction thus shows
-//    in both spaces. (A measurement given already projected has no channels to correct.)
+//    sensor put there) falls to its true SNR. When that leaves an off-diagonal element's median point
+//    SNR below min_element_snr, the rule by which Create() drops noise elements, the element stops
+//    counting (its weights are 0): a symmetric model's exact zero against measured noise would
+//    otherwise leave a log error of ~30 per point, and the right correction would score worse than
+//    none. A wrong sensor direction thus shows in both spaces. (A measurement given already projected
+//    has no channels to correct.)
 // Both sides are in the comparison quantity (the measurement's unless overridden). The ratio
 // H_model / H_meas, hence the error, does not depend on the quantity: s^p cancels.
 //
@@ -291,6 +295,7 @@ class Comparison {
   // frequency) and the weight cap, to weigh a re-projected measurement.
   std::vector<Eigen::MatrixXd> noise_sigma_;
   double weight_cap_ = kDefaultCoherenceWeightCap;
+  double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
 };
 
 }  // namespace stagefit::compare
