@@ -53,6 +53,11 @@ struct DiagnoseOptions {
   int refine_iterations = 30;
   int num_second_starts = 3;      ///< leaders refitted from the model's parameters as given
   int baseline_iterations = 50;
+  /// The leaders after the second starts are fitted on until converged (at most this many iterations,
+  /// no probes): the rounds before stop at a budget, and the error a leader is reported with should be
+  /// its optimum's.
+  int num_polished = 2;
+  int polish_iterations = 100;
   /// The candidates are searched (screening, refinement, second starts) on at most this many of the
   /// band's frequencies, every k-th of them; the leaders are then finished on all of them with
   /// `finish_iterations`, and every candidate is scored on all of them. 0: search on all.
@@ -71,7 +76,10 @@ struct Candidate {
   std::string with;              ///< the --with text that adds it: effect.ToString()
   double error_after = 0;        ///< SPEC §4 error after fitting effect + model parameters
   double delta_bic = 0;          ///< against the baseline (header); < 0 supports the effect
-  int num_parameters = 0;        ///< parameters the effect adds
+  int num_parameters = 0;        ///< parameters the effect adds: fitted ones, and held ones not at 0
+  /// Effect parameters held at their value (not fitted): a channel is also tried turned as the other
+  /// channels see it, every parameter of its sensor-geometry held (docs/diagnose.md).
+  std::vector<std::string> held_parameters;
   bool helps = false;            ///< the criterion of the header is met
   bool refined = false;          ///< fully fitted (else screening only)
   std::map<std::string, double> model_parameters;  ///< fitted model parameters with the effect
@@ -129,8 +137,17 @@ struct EffectFit {
   fit::FitSummary summary;
   model::ModelSpec spec;
 };
-/// With `probe_basins` the fit ends with fit::SolveWithProbes' basin probes.
+struct EffectFitOptions {
+  int max_iterations = 30;
+  bool probe_basins = false;           ///< end with fit::SolveWithProbes' basin probes
+  std::vector<std::string> held;       ///< effect parameters that keep their value
+  /// Ceres' first step. Long (the default) for candidates searched from afar: it gets an effect's mass
+  /// or stiffness near its value within a few iterations. Short (1, the stiffness fit's) to finish a
+  /// fit near its optimum: long first steps threw a turned sensor's fit, 0.3 rad from its start, into a
+  /// basin at 3x the floor.
+  double initial_trust_region_radius = 1e4;
+};
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
-                    const std::vector<std::string>& params, int max_iterations, bool probe_basins = false);
+                    const std::vector<std::string>& params, const EffectFitOptions& options = {});
 
 }  // namespace stagefit::diagnose
