@@ -95,7 +95,11 @@ void RegisterDiagnoseCommand(CLI::App& app) {
         for (const auto& c : summary.inconsistent_channels) {
           channels.push_back({{"channel", c.channel}, {"share", c.share}, {"band_hz", c.band_hz}});
         }
-        rigid = {{"max_share", summary.rigid_residual_share}, {"least_consistent", channels}};
+        nlohmann::json turned = nlohmann::json::array();
+        for (const auto& t : summary.turned_channels) {
+          turned.push_back({{"channel", t.channel}, {"angle_deg", t.angle_deg}, {"residual_share", t.residual_share}});
+        }
+        rigid = {{"max_share", summary.rigid_residual_share}, {"least_consistent", channels}, {"turned", turned}};
       }
       nlohmann::json report = {{"command", "diagnose"},
                                {"error", summary.error_initial},

@@ -118,6 +118,17 @@ struct DiagnoseSummary {
     double band_hz = 0;
   };
   std::vector<ChannelConsistency> inconsistent_channels;
+  /// Channels whose direction, as the other channels' rigid-body motion gives it
+  /// (measurement::EstimateChannelDirections), is more than 2 degrees off the declared one: name, angle
+  /// and the share of the channel's energy that direction leaves unexplained, smallest first. When one
+  /// channel is turned, the channels sharing its DoF are estimated off too (the turned one corrupts
+  /// the motion they are checked against), but only the turned one's direction leaves no residual.
+  struct TurnedChannel {
+    std::string channel;
+    double angle_deg = 0;
+    double residual_share = 0;
+  };
+  std::vector<TurnedChannel> turned_channels;
   double time_s = 0;
   std::string BriefReport(int max_candidates = 8) const;
 };
