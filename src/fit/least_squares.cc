@@ -41,8 +41,8 @@ struct ParameterMap {
   std::vector<ParameterSpec> specs;
 
   int size() const { return static_cast<int>(specs.size()); }
-  double ToTheta(int i, double p) const { return specs[i].log_scale ? std::log(p) : p; }
-  double ToP(int i, double theta) const { return specs[i].log_scale ? std::exp(theta) : theta; }
+  double ToTheta(int i, double p) const { return specs[i].log_scale ? std::log(p) : p / specs[i].scale; }
+  double ToP(int i, double theta) const { return specs[i].log_scale ? std::exp(theta) : theta * specs[i].scale; }
   Eigen::VectorXd ToTheta(const Eigen::VectorXd& p) const {
     Eigen::VectorXd theta(p.size());
     for (int i = 0; i < size(); ++i) theta[i] = ToTheta(i, p[i]);
@@ -56,18 +56,18 @@ struct ParameterMap {
   // dp/dtheta.
   Eigen::VectorXd Scale(const Eigen::VectorXd& p) const {
     Eigen::VectorXd d(size());
-    for (int i = 0; i < size(); ++i) d[i] = specs[i].log_scale ? p[i] : 1.0;
+    for (int i = 0; i < size(); ++i) d[i] = specs[i].log_scale ? p[i] : specs[i].scale;
     return d;
   }
   double LowerTheta(int i) const {
     const double lo = specs[i].lower;
     if (specs[i].log_scale) return lo > 0.0 ? std::log(lo) : -kInf;
-    return lo;
+    return lo / specs[i].scale;
   }
   double UpperTheta(int i) const {
     const double hi = specs[i].upper;
     if (specs[i].log_scale) return std::isfinite(hi) ? std::log(hi) : kInf;
-    return hi;
+    return hi / specs[i].scale;
   }
 };
 
@@ -344,6 +344,9 @@ void CheckParameters(const std::vector<ParameterSpec>& parameters) {
     if (p.initial < p.lower || p.initial > p.upper) {
       throw InputError(where.str() + ": initial value " + Format("%.6g", p.initial) + " " + p.unit +
                        " is outside its bounds [" + Format("%.6g", p.lower) + ", " + Format("%.6g", p.upper) + "]");
+    }
+    if (!(p.scale > 0.0 && std::isfinite(p.scale))) {
+      throw InputError(where.str() + ": scale " + Format("%.6g", p.scale) + ", expected a finite value > 0");
     }
     if (p.log_scale && !(p.initial > 0.0)) {
       throw InputError(where.str() + ": initial value " + Format("%.6g", p.initial) +
