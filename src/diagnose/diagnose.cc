@@ -78,7 +78,6 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
       const double limit = 0.95 * std::sqrt(joint.stiffness[index(a)] * joint.stiffness[index(b)]);
       s.lower = -limit;
       s.upper = limit;
-      s.scale = limit;  // N/m to Nm/rad: its Jacobian column is far below 1 per unit (fit::ParameterSpec)
     } else if (effect.name == "gyroscopic") {
       s.lower = -1000;
       s.upper = 1000;

@@ -73,8 +73,8 @@ struct ParameterSpec {
   /// scales a Jacobian column c by 1 / (1 + |c|), so a column far below 1 (a stiffness coupling in
   /// N/rad, |dr/dk| ~ 1e-7) stays unscaled against columns of order 1; in a fit with 27 stiffnesses,
   /// whose nonlinearity keeps the Levenberg-Marquardt damping up, a coupling started at 1e6 N/rad for a
-  /// truth of 2.17e6 ended at 1.003e6, and with a scale at 2.15e6. Estimates, bounds and standard
-  /// deviations stay in natural units.
+  /// truth of 2.17e6 ended at 1.003e6, and with a scale at 2.15e6 (docs/diagnose.md). Estimates,
+  /// bounds and standard deviations stay in natural units.
   double scale = 1.0;
 };
 
