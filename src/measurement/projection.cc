@@ -445,73 +445,53 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
   const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
   const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
   const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
-  const int nout = raw.num_outputs(), nin = raw.num_inputs();
   std::vector<int> used;
   for (int f = 0; f < raw.num_frequencies(); ++f) {
     const double fhz = raw.frequency_hz(f);
     if (fhz >= fmin_hz && fhz <= fmax_hz && raw.frf[f].squaredNorm() > 0.0) used.push_back(f);
   }
+  // Channel k of `rows` (the rows of rows_of(f): a frequency's FRFs, or their transpose for impacts)
+  // checked against the motion the other rows give: the sensors' problem; for impacts, with
+  // H' = J_F G', B' = [I, -[r]x] is the sensors' A and the transpose is the same problem.
   std::vector<ChannelDirectionEstimate> estimates;
-  auto add = [&](const ChannelGeometry& ch, bool is_impact, const Eigen::Matrix3d& M, const Eigen::Vector3d& b,
-                 double h2, bool observable) {
-    ChannelDirectionEstimate e;
-    e.name = ch.name;
-    e.is_impact = is_impact;
-    e.declared_W = ch.direction_W.normalized();
-    e.estimated_W = e.declared_W;
-    e.residual_share = 1.0;
-    e.estimable = observable && !used.empty() && SolveDirection(M, b, h2, &e.estimated_W, &e.residual_share);
-    e.angle_rad = std::atan2(e.declared_W.cross(e.estimated_W).norm(), e.declared_W.dot(e.estimated_W));
-    estimates.push_back(e);
+  auto estimate = [&](const std::vector<ChannelGeometry>& channels, const Eigen::MatrixXd& J, bool is_impact,
+                      auto rows_of) {
+    const int n = static_cast<int>(channels.size());
+    for (int i = 0; i < n; ++i) {
+      const Eigen::MatrixXd J_o = WithoutRow(J, i);
+      const bool observable = Observes6(J_o);
+      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      double h2 = 0.0;
+      if (observable) {
+        Eigen::Matrix<double, 3, 6> A;
+        A << Eigen::Matrix3d::Identity(), -Skew(channels[i].position_W - p_WXo);
+        const Eigen::MatrixXcd P = (A * PseudoInverse(J_o)).cast<std::complex<double>>();  // 3 x (n - 1)
+        for (int f : used) {
+          const Eigen::MatrixXcd H = rows_of(f);
+          Eigen::MatrixXcd H_o(n - 1, H.cols());
+          for (int r = 0, k = 0; r < n; ++r) {
+            if (r != i) H_o.row(k++) = H.row(r);
+          }
+          const Eigen::MatrixXcd a = P * H_o;  // 3 x columns: the channel's point moved by each other-side channel
+          M += (a * a.adjoint()).real();
+          b += (a * H.row(i).adjoint()).real();
+          h2 += H.row(i).squaredNorm();
+        }
+      }
+      ChannelDirectionEstimate e;
+      e.name = channels[i].name;
+      e.is_impact = is_impact;
+      e.declared_W = channels[i].direction_W.normalized();
+      e.estimated_W = e.declared_W;
+      e.residual_share = 1.0;
+      e.estimable = observable && !used.empty() && SolveDirection(M, b, h2, &e.estimated_W, &e.residual_share);
+      e.angle_rad = std::atan2(e.declared_W.cross(e.estimated_W).norm(), e.declared_W.dot(e.estimated_W));
+      estimates.push_back(e);
+    }
   };
-  for (int i = 0; i < nout; ++i) {
-    const Eigen::MatrixXd J_o = WithoutRow(J_a, i);
-    const bool observable = Observes6(J_o);
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    double h2 = 0.0;
-    if (observable) {
-      Eigen::Matrix<double, 3, 6> A;
-      A << Eigen::Matrix3d::Identity(), -Skew(raw.outputs[i].position_W - p_WXo);
-      const Eigen::MatrixXcd P = (A * PseudoInverse(J_o)).cast<std::complex<double>>();  // 3 x (nout - 1)
-      for (int f : used) {
-        const Eigen::MatrixXcd& H = raw.frf[f];
-        Eigen::MatrixXcd H_o(nout - 1, nin);
-        for (int r = 0, k = 0; r < nout; ++r) {
-          if (r != i) H_o.row(k++) = H.row(r);
-        }
-        const Eigen::MatrixXcd a = P * H_o;  // 3 x nin: motion of the sensor's point per impact
-        M += (a * a.adjoint()).real();
-        b += (a * H.row(i).adjoint()).real();
-        h2 += H.row(i).squaredNorm();
-      }
-    }
-    add(raw.outputs[i], false, M, b, h2, observable);
-  }
-  for (int j = 0; j < nin; ++j) {
-    const Eigen::MatrixXd J_o = WithoutRow(J_F, j);
-    const bool observable = Observes6(J_o);
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    double h2 = 0.0;
-    if (observable) {
-      Eigen::Matrix<double, 6, 3> B;
-      B << Eigen::Matrix3d::Identity(), Skew(raw.inputs[j].position_W - p_WXo);
-      const Eigen::MatrixXcd Q = (PseudoInverse(J_o.transpose()) * B).cast<std::complex<double>>();  // (nin - 1) x 3
-      for (int f : used) {
-        const Eigen::MatrixXcd& H = raw.frf[f];
-        Eigen::MatrixXcd H_o(nout, nin - 1);
-        for (int c = 0, k = 0; c < nin; ++c) {
-          if (c != j) H_o.col(k++) = H.col(c);
-        }
-        const Eigen::MatrixXcd a = H_o * Q;  // nout x 3: response to a unit force along each axis at the impact
-        M += (a.adjoint() * a).real();
-        b += (a.adjoint() * H.col(j)).real();
-        h2 += H.col(j).squaredNorm();
-      }
-    }
-    add(raw.inputs[j], true, M, b, h2, observable);
-  }
+  estimate(raw.outputs, J_a, false, [&](int f) { return Eigen::MatrixXcd(raw.frf[f]); });
+  estimate(raw.inputs, J_F, true, [&](int f) { return Eigen::MatrixXcd(raw.frf[f].transpose()); });
   return estimates;
 }
 
