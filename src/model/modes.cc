@@ -1,20 +1,21 @@
 #include "stagefit/model/modes.h"
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/Cholesky>
 
 #include <algorithm>
 #include <cmath>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::model {
 
 NormalModes CalcNormalModes(const Eigen::MatrixXd& M, const Eigen::MatrixXd& K) {
-  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(K, M);
-  if (eig.info() != Eigen::Success) throw NumericalError("generalised eigenproblem K phi = w^2 M phi failed");
+  const auto eig = CalcGeneralizedSymmetricEigenPairs(K, M);
+  if (!eig) throw NumericalError("generalised eigenproblem K phi = w^2 M phi failed");
   NormalModes modes;
-  modes.omega_rad_s = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-  modes.shapes = eig.eigenvectors();
+  modes.omega_rad_s = eig->values.cwiseMax(0.0).cwiseSqrt();
+  modes.shapes = eig->vectors;
   return modes;
 }
 
@@ -29,19 +30,10 @@ ModalAnalysis CalcModes(const AssembledModel& model) {
   A.bottomLeftCorner(n, n) = -Mllt.solve(Eigen::MatrixXd::Identity(n, n)).cast<Complex>() * Kc;
   A.bottomRightCorner(n, n) = -Mllt.solve(model.C()).cast<Complex>();
 
-  Eigen::VectorXcd lambda;
-  Eigen::MatrixXcd vectors;
-  if (!model.has_loss()) {
-    Eigen::EigenSolver<Eigen::MatrixXd> eig(A.real());
-    if (eig.info() != Eigen::Success) throw NumericalError("eigen-decomposition of the state matrix failed");
-    lambda = eig.eigenvalues();
-    vectors = eig.eigenvectors();
-  } else {
-    Eigen::ComplexEigenSolver<Eigen::MatrixXcd> eig(A);
-    if (eig.info() != Eigen::Success) throw NumericalError("eigen-decomposition of the state matrix failed");
-    lambda = eig.eigenvalues();
-    vectors = eig.eigenvectors();
-  }
+  const auto eig = CalcEigenPairs(A);  // the real solver when there is no loss
+  if (!eig) throw NumericalError("eigen-decomposition of the state matrix failed");
+  const Eigen::VectorXcd& lambda = eig->values;
+  const Eigen::MatrixXcd& vectors = eig->vectors;
 
   ModalAnalysis result;
   const double scale = std::max(1.0, lambda.cwiseAbs().maxCoeff());

@@ -1,7 +1,6 @@
 #include "stagefit/response/frf_evaluator.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <limits>
 #include <sstream>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
 #include "stagefit/model/modes.h"
@@ -229,12 +229,12 @@ void FrfEvaluator::SetUpModal(bool forced) {
 
   // Undamped normal modes of the symmetric part of K (any invertible M-orthonormal basis is exact).
   const Eigen::MatrixXd K_sym = 0.5 * (sys.K + sys.K.transpose());
-  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> normal(K_sym, sys.M);
-  if (normal.info() != Eigen::Success) return fall_back("the normal-mode eigenproblem failed");
-  phi_ = normal.eigenvectors();
-  const double omega2_max = std::max(normal.eigenvalues().maxCoeff(), 0.0);
+  const auto normal = CalcGeneralizedSymmetricEigenPairs(K_sym, sys.M);
+  if (!normal) return fall_back("the normal-mode eigenproblem failed");
+  phi_ = normal->vectors;
+  const double omega2_max = std::max(normal->values.maxCoeff(), 0.0);
   const double floor2 = omega2_max > 0 ? 1e-12 * omega2_max : 1.0;
-  Eigen::VectorXd scale = normal.eigenvalues().cwiseMax(floor2).cwiseSqrt();  // D = diag(scale)
+  Eigen::VectorXd scale = normal->values.cwiseMax(floor2).cwiseSqrt();  // D = diag(scale)
   const bool real = sys.K_loss.isZero(0.0);
 
   const Eigen::MatrixXcd Kt = (phi_.transpose() * sys.K * phi_).cast<Complex>() +
@@ -246,18 +246,10 @@ void FrfEvaluator::SetUpModal(bool forced) {
   A.bottomRightCorner(n, n) = -Ct.cast<Complex>();
   A.bottomLeftCorner(n, n) *= -1.0;
 
-  Eigen::MatrixXcd V;
-  if (real) {
-    Eigen::EigenSolver<Eigen::MatrixXd> eig(A.real());
-    if (eig.info() != Eigen::Success) return fall_back("the eigen-decomposition of the first-order matrix failed");
-    poles_ = eig.eigenvalues();
-    V = eig.eigenvectors();
-  } else {
-    Eigen::ComplexEigenSolver<Eigen::MatrixXcd> eig(A);
-    if (eig.info() != Eigen::Success) return fall_back("the eigen-decomposition of the first-order matrix failed");
-    poles_ = eig.eigenvalues();
-    V = eig.eigenvectors();
-  }
+  auto eig = CalcEigenPairs(A);  // the real solver when there is no loss (exact conjugate pairs)
+  if (!eig) return fall_back("the eigen-decomposition of the first-order matrix failed");
+  poles_ = eig->values;
+  Eigen::MatrixXcd V = std::move(eig->vectors);
   for (int k = 0; k < 2 * n; ++k) V.col(k).normalize();
   Eigen::PartialPivLU<Eigen::MatrixXcd> lu(V);
   Eigen::MatrixXcd unit = Eigen::MatrixXcd::Zero(2 * n, n);

@@ -1,11 +1,12 @@
 #include "stagefit/simulate/rotating_frame.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include <cmath>
 #include <sstream>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::simulate {
@@ -152,7 +153,9 @@ Eigen::VectorXcd CalcEigenvalues(const Eigen::MatrixXd& M, const Eigen::MatrixXd
   A.topRightCorner(n, n).setIdentity();
   A.bottomLeftCorner(n, n) = -llt.solve(K);
   A.bottomRightCorner(n, n) = -llt.solve(C);
-  return Eigen::EigenSolver<Eigen::MatrixXd>(A, false).eigenvalues();
+  const auto eig = CalcEigenPairs(A, /*with_vectors=*/false);
+  if (!eig) throw NumericalError("eigen-decomposition of the state matrix failed");
+  return eig->values;
 }
 
 }  // namespace stagefit::simulate

@@ -1,12 +1,12 @@
 #include "stagefit/simulate/time_integration.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include <cmath>
 #include <sstream>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::simulate {
@@ -101,13 +101,13 @@ ModalIntegrator::ModalIntegrator(const model::StateSpace& system, double time_st
                                  const ModalIntegratorOptions& options)
     : discrete_(DiscretiseZeroOrderHold(system, time_step_s)) {
   const Eigen::Index n = system.A.rows();
-  Eigen::EigenSolver<Eigen::MatrixXd> eig(system.A);
-  if (eig.info() != Eigen::Success) {
+  const auto eig = CalcEigenPairs(system.A);
+  if (!eig) {
     message_ = "eigen decomposition of A failed; dense recurrence used";
     return;
   }
-  const Eigen::VectorXcd lambda = eig.eigenvalues();
-  const Eigen::MatrixXcd V = eig.eigenvectors();
+  const Eigen::VectorXcd& lambda = eig->values;
+  const Eigen::MatrixXcd& V = eig->vectors;
   T_.resize(n, n);
   Eigen::MatrixXd Lambda = Eigen::MatrixXd::Zero(n, n);
   phi_ = Eigen::MatrixXd::Zero(2, n);

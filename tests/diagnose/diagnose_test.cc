@@ -73,13 +73,13 @@ TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
 TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   synthetic::HiddenEffectOptions hidden;
-  hidden.num_frequencies = 600;
+  hidden.num_frequencies = 400;
   auto c = synthetic::MakeHiddenEffectCase(nominal, 1004, hidden);
   ASSERT_EQ(c.effects.size(), 1u);
   ASSERT_EQ(c.effects[0].name, "delay");
   DiagnoseOptions options = QuietOptions();
   options.effects = {"delay", "structural-damping"};
-  options.max_search_frequencies = 200;
+  options.max_search_frequencies = 150;
   const auto thinned = Diagnose(nominal, c.measurement, options);
   std::cout << thinned.BriefReport() << "time " << thinned.time_s << " s\n";
   options.max_search_frequencies = 0;
@@ -87,7 +87,7 @@ TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   std::cout << full.BriefReport() << "time " << full.time_s << " s\n";
 
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  ASSERT_EQ(comparison.num_frequencies(), 600);
+  ASSERT_EQ(comparison.num_frequencies(), 400);
   for (const Candidate& candidate : thinned.candidates) {
     EXPECT_NEAR(candidate.error_after, comparison.Error(ApplyCandidate(thinned, candidate)), 1e-12 * candidate.error_after)
         << candidate.with;

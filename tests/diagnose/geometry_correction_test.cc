@@ -172,7 +172,9 @@ TEST(GeometryCorrection, OtherChannelsGiveEveryChannelsDirection) {
   c.data.outputs.resize(6);
   for (auto& H : c.data.frf) H = H.topRows(6).eval();
   for (const auto& e : measurement::EstimateChannelDirections(c.data, X)) {
-    if (!e.is_impact) EXPECT_FALSE(e.estimable) << e.name;
+    if (!e.is_impact) {
+      EXPECT_FALSE(e.estimable) << e.name;
+    }
   }
 }
 

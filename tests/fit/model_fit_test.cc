@@ -76,7 +76,9 @@ TEST(FitModel, RecoversScatteredStiffnessesWithinThreeStd) {
   // The compliance at {X} sees at least the hexapod's six stiffnesses.
   EXPECT_GE(identifiable, 6) << summary.FullReport();
   for (const auto& e : summary.parameters) {
-    if (e.name.rfind("hexapod.k.", 0) == 0) EXPECT_TRUE(e.identifiable) << e.name << "\n" << summary.FullReport();
+    if (e.name.rfind("hexapod.k.", 0) == 0) {
+      EXPECT_TRUE(e.identifiable) << e.name << "\n" << summary.FullReport();
+    }
   }
   ASSERT_FALSE(spec.history.empty());
   EXPECT_EQ(spec.history.back().step, "fit");

@@ -81,7 +81,9 @@ inline void ExpectSameMeasurement(const FrfData& a, const FrfData& b) {
   for (int i = 0; i < a.num_outputs(); ++i) same(a.outputs[i], b.outputs[i]);
   for (int j = 0; j < a.num_inputs(); ++j) same(a.inputs[j], b.inputs[j]);
   EXPECT_EQ(a.frame_origin_W.has_value(), b.frame_origin_W.has_value());
-  if (a.frame_origin_W && b.frame_origin_W) EXPECT_EQ(*a.frame_origin_W, *b.frame_origin_W);
+  if (a.frame_origin_W && b.frame_origin_W) {
+    EXPECT_EQ(*a.frame_origin_W, *b.frame_origin_W);
+  }
 }
 
 /// Runs `f` and checks that it throws InputError whose message contains `fragment`.

@@ -78,8 +78,12 @@ TEST(RunTomography, RecoversTheRadialOffsetAsTheEccentricity) {
   ASSERT_EQ(run.error_names.size(), run.statistics.size());
   // With the circle removed, the radial error is the disturbance alone: well below the offset.
   for (const auto& s : run.statistics) {
-    if (s.name == "x") EXPECT_GT(s.peak_to_peak, 1.8e-6);
-    if (s.name == "radial") EXPECT_LT(s.rms, 2e-7);
+    if (s.name == "x") {
+      EXPECT_GT(s.peak_to_peak, 1.8e-6);
+    }
+    if (s.name == "radial") {
+      EXPECT_LT(s.rms, 2e-7);
+    }
   }
   EXPECT_TRUE(run.modal_integration);
 }
