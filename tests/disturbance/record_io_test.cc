@@ -11,11 +11,20 @@
 namespace stagefit::disturbance {
 namespace {
 
-std::filesystem::path TempDir() {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("stagefit_record_io_test_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return dir;
+// A folder of this test process, removed when it exits.
+struct TempDirectory {
+  std::filesystem::path path = std::filesystem::temp_directory_path() /
+                               ("stagefit_record_io_test_" + std::to_string(::getpid()));
+  TempDirectory() { std::filesystem::create_directories(path); }
+  ~TempDirectory() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path, ignored);
+  }
+};
+
+const std::filesystem::path& TempDir() {
+  static const TempDirectory dir;
+  return dir.path;
 }
 
 void WriteText(const std::filesystem::path& p, const std::string& text) {
