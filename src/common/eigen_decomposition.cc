@@ -1,5 +1,6 @@
 #include "stagefit/common/eigen_decomposition.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 namespace stagefit {
@@ -25,6 +26,8 @@ std::optional<EigenPairs> CalcEigenPairs(const Eigen::MatrixXcd& A, bool with_ve
 
 std::optional<SymmetricEigenPairs> CalcGeneralizedSymmetricEigenPairs(const Eigen::MatrixXd& K,
                                                                       const Eigen::MatrixXd& M) {
+  // Eigen's solver reduces with the Cholesky factor of M without checking it.
+  if (Eigen::LLT<Eigen::MatrixXd>(M).info() != Eigen::Success) return std::nullopt;
   Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(K, M);
   if (eig.info() != Eigen::Success) return std::nullopt;
   return SymmetricEigenPairs{eig.eigenvalues(), eig.eigenvectors()};

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
@@ -128,7 +129,10 @@ class MatV5 {
     for (std::size_t i = 0; i < elements_.size(); ++i) {
       if (elements_[i].name == v.name) elements_.erase(elements_.begin() + i);
     }
-    const fs::path scratch = fs::temp_directory_path() / ("stagefit_bad_input_var_" + v.name + ".mat");
+    // Per process: CTest runs the cases in parallel, and two of them writing the same variable to one
+    // file read each other's half-written or removed scratch.
+    const fs::path scratch = fs::temp_directory_path() /
+                             ("stagefit_bad_input_var_" + std::to_string(::getpid()) + "_" + v.name + ".mat");
     measurement::WriteMatFile(scratch, {v});
     MatV5 one = Read(scratch);
     fs::remove(scratch);
