@@ -5,8 +5,11 @@
 
 namespace stagefit {
 
-std::optional<EigenPairs> CalcEigenPairs(const Eigen::MatrixXd& A, bool with_vectors) {
-  Eigen::EigenSolver<Eigen::MatrixXd> eig(A, with_vectors);
+namespace {
+
+// Values and (when asked for) vectors of a solver that has run.
+template <typename Solver>
+std::optional<EigenPairs> Collect(const Solver& eig, bool with_vectors) {
   if (eig.info() != Eigen::Success) return std::nullopt;
   EigenPairs pairs;
   pairs.values = eig.eigenvalues();
@@ -14,14 +17,15 @@ std::optional<EigenPairs> CalcEigenPairs(const Eigen::MatrixXd& A, bool with_vec
   return pairs;
 }
 
+}  // namespace
+
+std::optional<EigenPairs> CalcEigenPairs(const Eigen::MatrixXd& A, bool with_vectors) {
+  return Collect(Eigen::EigenSolver<Eigen::MatrixXd>(A, with_vectors), with_vectors);
+}
+
 std::optional<EigenPairs> CalcEigenPairs(const Eigen::MatrixXcd& A, bool with_vectors) {
   if (A.imag().isZero(0.0)) return CalcEigenPairs(Eigen::MatrixXd(A.real()), with_vectors);
-  Eigen::ComplexEigenSolver<Eigen::MatrixXcd> eig(A, with_vectors);
-  if (eig.info() != Eigen::Success) return std::nullopt;
-  EigenPairs pairs;
-  pairs.values = eig.eigenvalues();
-  if (with_vectors) pairs.vectors = eig.eigenvectors();
-  return pairs;
+  return Collect(Eigen::ComplexEigenSolver<Eigen::MatrixXcd>(A, with_vectors), with_vectors);
 }
 
 std::optional<SymmetricEigenPairs> CalcGeneralizedSymmetricEigenPairs(const Eigen::MatrixXd& K,

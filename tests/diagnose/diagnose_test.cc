@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "stagefit/compare/residuals.h"
 #include "stagefit/model/model_file.h"
@@ -16,6 +19,27 @@ DiagnoseOptions QuietOptions() {
   DiagnoseOptions options;
   options.progress = [](const std::string& line) { std::cout << line << std::endl; };
   return options;
+}
+
+// One drawn effect (seed: synthetic::MakeHiddenEffectCase with default options), checked to be the
+// expected one, diagnosed with `effects` (empty: the whole catalogue); `floor` is the truth's error.
+struct HiddenCaseRun {
+  synthetic::HiddenEffectCase c;
+  DiagnoseSummary summary;
+  double floor = 0;
+};
+void DiagnoseHiddenCase(uint64_t seed, const std::string& effect, const std::string& location,
+                        const std::vector<std::string>& effects, HiddenCaseRun* run) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  run->c = synthetic::MakeHiddenEffectCase(nominal, seed, {});
+  ASSERT_EQ(run->c.effects.size(), 1u);
+  ASSERT_EQ(run->c.effects[0].name, effect);
+  ASSERT_EQ(run->c.effects[0].location, location);
+  DiagnoseOptions options = QuietOptions();
+  options.effects = effects;
+  run->summary = Diagnose(nominal, run->c.measurement, options);
+  std::cout << run->summary.BriefReport() << "time " << run->summary.time_s << " s\n";
+  run->floor = compare::Comparison::Create(nominal, run->c.measurement).Error(run->c.truth);
 }
 
 // Effect-free data (stiffness scatter and noise only): the baseline fit reaches the noise floor and
@@ -73,23 +97,15 @@ TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
 // factor 4. Not yet to the floor: the body's rotational stiffness kr (its rocking mode at 351 Hz) is
 // left 12x too stiff here (error 0.138, floor 0.041; docs/diagnose.md).
 TEST(Diagnose, FindsAnExtraBodyTheBaselineStiffnessesHid) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  auto c = synthetic::MakeHiddenEffectCase(nominal, 1009, {});
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name, "extra-body");
-  ASSERT_EQ(c.effects[0].location, "hexapod");
-  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_body")];
-  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
-  DiagnoseOptions options = QuietOptions();
-  options.effects = {"extra-body"};
-  const auto summary = Diagnose(nominal, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
-  ASSERT_TRUE(summary.effect_found);
-  const Candidate& best = summary.candidates[0];
+  HiddenCaseRun run;
+  ASSERT_NO_FATAL_FAILURE(DiagnoseHiddenCase(1009, "extra-body", "hexapod", {"extra-body"}, &run));
+  const auto& body = run.c.truth.bodies[model::FindBody(run.c.truth, "hidden_body")];
+  const auto& host = run.c.truth.bodies[model::FindBody(run.c.truth, "hexapod")];
+  ASSERT_TRUE(run.summary.effect_found);
+  const Candidate& best = run.summary.candidates[0];
   EXPECT_EQ(best.effect.location, "hexapod");
-  EXPECT_LT(best.error_after, 0.25 * summary.error_baseline);
-  EXPECT_GT(summary.error_baseline, 10 * floor);
+  EXPECT_LT(best.error_after, 0.25 * run.summary.error_baseline);
+  EXPECT_GT(run.summary.error_baseline, 10 * run.floor);
   EXPECT_NEAR(best.effect.parameters.at("mass"), body.mass_kg, 0.1 * body.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), body.com_W.z() - host.com_W.z(), 0.01);
 }
@@ -102,16 +118,9 @@ TEST(Diagnose, FindsAnExtraBodyTheBaselineStiffnessesHid) {
 // stopped in a local minimum. The effects are the channels' and the joint offsets, the one that won
 // then (the whole catalogue: eval_diagnose).
 TEST(Diagnose, FindsATurnedSensorInComplianceSpace) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  auto c = synthetic::MakeHiddenEffectCase(nominal, 1023, {});
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name, "sensor-geometry");
-  ASSERT_EQ(c.effects[0].location, "a2z");
-  DiagnoseOptions options = QuietOptions();
-  options.effects = {"sensor-geometry", "joint-offset"};
-  const auto summary = Diagnose(nominal, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
+  HiddenCaseRun run;
+  ASSERT_NO_FATAL_FAILURE(DiagnoseHiddenCase(1023, "sensor-geometry", "a2z", {"sensor-geometry", "joint-offset"}, &run));
+  const DiagnoseSummary& summary = run.summary;
   ASSERT_FALSE(summary.turned_channels.empty());
   EXPECT_EQ(summary.turned_channels[0].channel, "a2z");
   EXPECT_NEAR(summary.turned_channels[0].angle_deg, 17.0, 1.0);
@@ -119,7 +128,7 @@ TEST(Diagnose, FindsATurnedSensorInComplianceSpace) {
   const Candidate& best = summary.candidates[0];
   EXPECT_EQ(best.effect.name, "sensor-geometry");
   EXPECT_EQ(best.effect.location, "a2z");
-  EXPECT_LT(best.error_after, 1.1 * floor);
+  EXPECT_LT(best.error_after, 1.1 * run.floor);
 }
 
 // The stiffness centre of the hexapod 84 mm below where the model puts it (seed 1017). It makes both
@@ -127,24 +136,17 @@ TEST(Diagnose, FindsATurnedSensorInComplianceSpace) {
 // from the baseline the offset's fit hardly moved (0.66 for a floor of 0.038) and a coupling won
 // (0.45). Started from the model as given, 0.1 m below, the offset is found to a few mm, at the floor.
 TEST(Diagnose, FindsAStiffnessCentreTheCouplingsMimic) {
+  HiddenCaseRun run;
+  ASSERT_NO_FATAL_FAILURE(DiagnoseHiddenCase(1017, "joint-offset", "hexapod", {"joint-offset", "coupled-stiffness"}, &run));
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  auto c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name, "joint-offset");
-  ASSERT_EQ(c.effects[0].location, "hexapod");
-  const double dz = c.truth.joints[model::FindJoint(c.truth, "hexapod")].origin_W.z() -
+  const double dz = run.c.truth.joints[model::FindJoint(run.c.truth, "hexapod")].origin_W.z() -
                     nominal.joints[model::FindJoint(nominal, "hexapod")].origin_W.z();
-  DiagnoseOptions options = QuietOptions();
-  options.effects = {"joint-offset", "coupled-stiffness"};
-  const auto summary = Diagnose(nominal, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
-  ASSERT_TRUE(summary.effect_found);
-  const Candidate& best = summary.candidates[0];
+  ASSERT_TRUE(run.summary.effect_found);
+  const Candidate& best = run.summary.candidates[0];
   EXPECT_EQ(best.effect.name, "joint-offset");
   EXPECT_EQ(best.effect.location, "hexapod");
   EXPECT_NEAR(best.effect.parameters.at("dz"), dz, 0.005);
-  EXPECT_LT(best.error_after, 1.1 * floor);
+  EXPECT_LT(best.error_after, 1.1 * run.floor);
 }
 
 // A 7.2 kg payload 141 mm above the hexapod's centre of mass (seed 1028), in data made by the
@@ -153,23 +155,17 @@ TEST(Diagnose, FindsAStiffnessCentreTheCouplingsMimic) {
 // payload's own fits, from 1.5 kg at the centre of mass, stopped at 7x; the payload fitted from the
 // extra body's mass and height reaches the floor.
 TEST(Diagnose, FindsAHiddenPayloadAnExtraBodyApproximates) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  auto c = synthetic::MakeHiddenEffectCase(nominal, 1028, {});
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name, "payload");
-  ASSERT_EQ(c.effects[0].location, "hexapod");
-  const auto& payload = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
-  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
-  const auto summary = Diagnose(nominal, c.measurement, QuietOptions());
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
-  ASSERT_TRUE(summary.effect_found);
-  const Candidate& best = summary.candidates[0];
+  HiddenCaseRun run;
+  ASSERT_NO_FATAL_FAILURE(DiagnoseHiddenCase(1028, "payload", "hexapod", {}, &run));
+  const auto& payload = run.c.truth.bodies[model::FindBody(run.c.truth, "hidden_payload")];
+  const auto& host = run.c.truth.bodies[model::FindBody(run.c.truth, "hexapod")];
+  ASSERT_TRUE(run.summary.effect_found);
+  const Candidate& best = run.summary.candidates[0];
   EXPECT_EQ(best.effect.name, "payload");
   EXPECT_EQ(best.effect.location, "hexapod");
   EXPECT_NEAR(best.effect.parameters.at("mass"), payload.mass_kg, 0.05 * payload.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), payload.com_W.z() - host.com_W.z(), 0.01);
-  EXPECT_LT(best.error_after, 1.1 * floor);
+  EXPECT_LT(best.error_after, 1.1 * run.floor);
 }
 
 }  // namespace
