@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <cstdint>
 #include <random>
 
 #include "stagefit/common/error.h"
@@ -35,6 +36,22 @@ class ExponentialDecay final : public LeastSquaresProblem {
 };
 
 // y = X b (a straight line a + b t): linear least squares with the closed-form covariance.
+// y = 0.5 + slope * unit * t + noise at t = 0.1 i (i < m), seeded; X = [1, unit * t], so that the
+// slope's Jacobian column is `unit` per unit of slope.
+void MakeLineData(uint64_t seed, double noise, double unit, double slope, int m, Eigen::MatrixXd* X,
+                  Eigen::VectorXd* y) {
+  std::mt19937_64 generator(seed);
+  std::normal_distribution<double> normal(0.0, noise);
+  X->resize(m, 2);
+  y->resize(m);
+  for (int i = 0; i < m; ++i) {
+    const double t = 0.1 * i;
+    (*X)(i, 0) = 1.0;
+    (*X)(i, 1) = unit * t;
+    (*y)[i] = 0.5 + unit * slope * t + normal(generator);
+  }
+}
+
 class StraightLine final : public LeastSquaresProblem {
  public:
   StraightLine(Eigen::MatrixXd X, Eigen::VectorXd y) : X_(std::move(X)), y_(std::move(y)) {}
@@ -110,17 +127,10 @@ TEST(Solve, ExponentialDecayRecoversTruthWithinThreeStd) {
 }
 
 TEST(Solve, LinearProblemCovarianceEqualsClosedForm) {
-  std::mt19937_64 generator(11);
-  std::normal_distribution<double> normal(0.0, 0.05);
   const int m = 40;
-  Eigen::MatrixXd X(m, 2);
-  Eigen::VectorXd y(m);
-  for (int i = 0; i < m; ++i) {
-    const double t = 0.1 * i;
-    X(i, 0) = 1.0;
-    X(i, 1) = t;
-    y[i] = 0.5 + 1.5 * t + normal(generator);
-  }
+  Eigen::MatrixXd X;
+  Eigen::VectorXd y;
+  MakeLineData(11, 0.05, 1.0, 1.5, m, &X, &y);
   const StraightLine problem(X, y);
   const FitSummary summary = Solve(problem, {{"a", "m", 0.0}, {"b", "m/s", 0.0}}, {});
   ASSERT_TRUE(summary.converged()) << summary.FullReport();
@@ -148,17 +158,10 @@ TEST(Solve, LinearProblemCovarianceEqualsClosedForm) {
 // standard deviations are reported in natural units. (In a fit with 27 stiffnesses, where the other
 // parameters' nonlinearity keeps the damping up, the unscaled coupling hardly moved: docs/diagnose.md.)
 TEST(Solve, ScaledParameterReachesTheSameOptimumInNaturalUnits) {
-  std::mt19937_64 generator(5);
-  std::normal_distribution<double> normal(0.0, 0.01);
   const int m = 40;
-  Eigen::MatrixXd X(m, 2);
-  Eigen::VectorXd y(m);
-  for (int i = 0; i < m; ++i) {
-    const double t = 0.1 * i;
-    X(i, 0) = 1.0;
-    X(i, 1) = 1e-7 * t;
-    y[i] = 0.5 + 1e-7 * 2.17e6 * t + normal(generator);
-  }
+  Eigen::MatrixXd X;
+  Eigen::VectorXd y;
+  MakeLineData(5, 0.01, 1e-7, 2.17e6, m, &X, &y);
   const StraightLine problem(X, y);
   const Eigen::VectorXd b = (X.transpose() * X).ldlt().solve(X.transpose() * y);
   const double sigma2 = (X * b - y).squaredNorm() / (m - 2);
