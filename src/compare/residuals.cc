@@ -481,16 +481,69 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
 void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
                                       Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const {
+  ResidualsAndJacobian(spec, params, {}, r, J, workspace);
+}
+
+void Comparison::WeightResiduals(const Eigen::VectorXcd& e, const MeasuredSide& side, Eigen::VectorXd* r) const {
+  const int np = num_points();
+  r->resize(2 * np);
+  for (int p = 0; p < np; ++p) {
+    const std::complex<double> we = side.weights[p] * e(p) / side.norm;
+    (*r)(p) = we.real();
+    (*r)(np + p) = we.imag();
+  }
+}
+
+void Comparison::ResidualsWithModelResponse(const model::ModelSpec& spec, const Eigen::MatrixXcd& model_values,
+                                            Eigen::VectorXd* r) const {
+  STAGEFIT_ASSERT(r != nullptr, "r must not be null");
+  STAGEFIT_ASSERT(model_values.rows() == num_frequencies() && model_values.cols() == num_outputs() * num_inputs(),
+                  "model_values must be num_frequencies() x (num_outputs() * num_inputs())");
+  MeasuredSide side;
+  SetMeasuredSide(spec, &side);
+  Eigen::VectorXcd e;
+  CalcLogErrors(model_values, *side.values, &e);
+  WeightResiduals(e, side, r);
+}
+
+model::SecondOrderSystem Comparison::ModelSystem(const model::ModelSpec& spec) const {
+  return BuildModelSystem(model::AssembledModel::Assemble(spec, "model '" + spec.name + "'"));
+}
+
+void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
+                                      const std::vector<model::ParameterInfo>& params,
+                                      const std::vector<response::DynamicStiffnessDerivative>& further,
+                                      Eigen::VectorXd* r, Eigen::MatrixXd* J,
+                                      response::FrfWithDerivatives* workspace) const {
   STAGEFIT_ASSERT(r != nullptr && workspace != nullptr, "r and workspace must not be null");
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
   auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
   const auto quantity = ToResponseQuantity(quantity_);
   const int np = num_points();
-  const bool want_jacobian = J != nullptr && !params.empty();
+  const int num_columns = static_cast<int>(params.size() + further.size());
+  const bool want_jacobian = J != nullptr && num_columns > 0;
 
   response::FrfWithDerivatives& frf = *workspace;
-  if (want_jacobian) {
+  if (want_jacobian && further.empty()) {
     evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, params, assembled, &frf);
+  } else if (want_jacobian) {
+    const int n = assembled.num_dofs();
+    std::vector<response::DynamicStiffnessDerivative> derivatives;
+    derivatives.reserve(num_columns);
+    for (const auto& p : params) {
+      derivatives.push_back(response::MakeDynamicStiffnessDerivative(model::CalcSystemDerivative(assembled, p), p.name));
+    }
+    for (const auto& d : further) {
+      for (const auto& e : d.entries) {
+        if (e.row < 0 || e.row >= n || e.col < 0 || e.col >= n) {
+          throw InputError("comparison with '" + source_ + "': derivative '" + d.name + "' has an entry (" +
+                           std::to_string(e.row) + ", " + std::to_string(e.col) + ") outside the model's " +
+                           std::to_string(n) + " generalised coordinates");
+        }
+      }
+      derivatives.push_back(d);
+    }
+    evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, derivatives, &frf);
   } else {
     evaluator.Evaluate(frequency_hz_, quantity, &frf.frf);
   }
@@ -498,18 +551,13 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
   SetMeasuredSide(spec, &side);
   Eigen::VectorXcd e;
   CalcLogErrors(frf.frf.values, *side.values, &e);
-  r->resize(2 * np);
-  for (int p = 0; p < np; ++p) {
-    const std::complex<double> we = side.weights[p] * e(p) / side.norm;
-    (*r)(p) = we.real();
-    (*r)(np + p) = we.imag();
-  }
+  WeightResiduals(e, side, r);
   if (J == nullptr) return;
   if (!want_jacobian) {
-    J->setZero(2 * np, static_cast<int>(params.size()));
+    J->setZero(2 * np, num_columns);
     return;
   }
-  J->resize(2 * np, static_cast<int>(params.size()));  // every entry is written below
+  J->resize(2 * np, num_columns);  // every entry is written below
   const int no = num_outputs();
   // w de/dp = (w / H_model) dH/dp: one division per point, not one per point and parameter.
   Eigen::VectorXcd factor(np);
@@ -520,7 +568,7 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
     column(p) = idx.output + no * idx.input;
     factor(p) = (side.weights[p] / side.norm) / frf.frf.values(pt.frequency, column(p));
   }
-  for (int k = 0; k < static_cast<int>(params.size()); ++k) {
+  for (int k = 0; k < num_columns; ++k) {
     const Eigen::MatrixXcd& dH = frf.derivatives[k];
     for (int p = 0; p < np; ++p) {
       const std::complex<double> wde = factor(p) * dH(points_[p].frequency, column(p));

@@ -13,6 +13,7 @@
 
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
+#include "stagefit/diagnose/effect_problem.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/kinematics/rigid_transform.h"
 #include "stagefit/measurement/projection.h"
@@ -37,155 +38,9 @@ std::string Format(const char* format, double a = 0, double b = 0, double c = 0)
 /// Places in the refinement one effect can take at most (at its several locations).
 constexpr int kMaxRefinedPerEffect = 4;
 
-/// The range of a sensor-geometry correction's Euler angles, rad (about 34 degrees).
-constexpr double kMaxCorrectionTurn = 0.6;
 /// A channel's direction estimated from the other channels (measurement::EstimateChannelDirections)
 /// counts as turned above this angle: at 1-3 % noise right channels came out up to 1.3 degrees off.
 constexpr double kMinEstimatedTurn = 2.0 * M_PI / 180;
-
-/// Search ranges of the effect parameters (natural units), from the model around the location; the
-/// parameters named in `held` are left out. `positions` (optional) receives each spec's position in the
-/// effect definition's parameter list.
-std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& base, const model::Effect& effect,
-                                                     const std::vector<std::string>& held = {},
-                                                     std::vector<int>* positions = nullptr) {
-  const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
-  std::vector<fit::ParameterSpec> specs;
-  for (size_t k = 0; k < def.parameters.size(); ++k) {
-    const auto& p = def.parameters[k];
-    if (std::find(held.begin(), held.end(), p.name) != held.end()) continue;
-    if (positions) positions->push_back(static_cast<int>(k));
-    fit::ParameterSpec s;
-    s.name = effect.name + "." + p.name;
-    s.unit = SiUnit(p.dimension);
-    s.initial = effect.parameters.at(p.name);
-    if (p.dimension == dim::kLength) {
-      // A channel's position is known to a few centimetres (it is measured on the structure); the
-      // larger range of a stiffness centre or a payload's offset let a correction of a channel that is
-      // right mimic another channel's turn in compliance space (docs/diagnose.md).
-      const double range = effect.name == "sensor-geometry" ? 0.05 : 0.3;
-      s.lower = -range;
-      s.upper = range;
-    } else if (p.dimension == dim::kAngle) {
-      s.lower = -kMaxCorrectionTurn;
-      s.upper = kMaxCorrectionTurn;
-    } else if (effect.name == "coupled-stiffness") {
-      // |k_ab| < sqrt(k_aa k_bb) keeps the joint positive definite.
-      const int dot = static_cast<int>(effect.location.rfind('.'));
-      const auto& joint = base.joints[model::FindJoint(base, effect.location.substr(0, dot))];
-      const auto a = *ParseDof(effect.location.substr(dot + 1, 2));
-      const auto b = *ParseDof(effect.location.substr(dot + 4, 2));
-      const double limit = 0.95 * std::sqrt(joint.stiffness[index(a)] * joint.stiffness[index(b)]);
-      s.lower = -limit;
-      s.upper = limit;
-      s.scale = limit;  // N/m to Nm/rad: its Jacobian column is far below 1 per unit (fit::ParameterSpec)
-    } else if (effect.name == "gyroscopic") {
-      s.lower = -1000;
-      s.upper = 1000;
-    } else if (p.positive && s.initial > 0) {
-      s.log_scale = true;
-      double factor = 1e3;
-      if (p.name == "eta" || p.name == "zeta") factor = 30;
-      if (effect.name == "delay") factor = 100;
-      s.lower = s.initial / factor;
-      s.upper = s.initial * factor;
-      if (p.name == "mass" && effect.name == "payload") s.upper = std::min(s.upper, 20.0 * s.initial);
-    }
-    specs.push_back(s);
-  }
-  return specs;
-}
-
-/// Effect parameters followed by model parameters -> the comparison's residuals. The model
-/// parameters' Jacobian columns are analytic; the effect's come from central differences.
-class EffectProblem final : public fit::LeastSquaresProblem {
- public:
-  /// effect_index[i]: the position of effect_specs[i] in the effect definition's parameter list.
-  EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison, model::Effect effect,
-                std::vector<fit::ParameterSpec> effect_specs, std::vector<int> effect_index,
-                std::vector<model::ParameterInfo> model_params)
-      : base_(base),
-        comparison_(&comparison),
-        effect_(std::move(effect)),
-        effect_specs_(std::move(effect_specs)),
-        effect_index_(std::move(effect_index)),
-        model_params_(std::move(model_params)) {}
-
-  int num_parameters() const override { return static_cast<int>(effect_specs_.size() + model_params_.size()); }
-  int num_residuals() const override { return comparison_->num_residuals(); }
-  bool has_jacobian() const override { return true; }
-
-  model::Effect EffectAt(const Eigen::VectorXd& p) const {
-    model::Effect e = effect_;
-    const model::EffectDefinition& def = model::FindEffectDefinition(e.name);
-    for (size_t i = 0; i < effect_specs_.size(); ++i) e.parameters[def.parameters[effect_index_[i]].name] = p(static_cast<int>(i));
-    return e;
-  }
-
-  bool SpecAt(const Eigen::VectorXd& p, model::ModelSpec* spec) const {
-    *spec = base_;
-    try {
-      model::ApplyEffect(*spec, EffectAt(p));
-      const int ne = static_cast<int>(effect_specs_.size());
-      for (size_t k = 0; k < model_params_.size(); ++k) model::SetParameter(*spec, model_params_[k], p(ne + static_cast<int>(k)));
-    } catch (const InputError&) {
-      return false;
-    }
-    return true;
-  }
-
-  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
-    model::ModelSpec spec;
-    if (!SpecAt(p, &spec)) return false;
-    const int ne = static_cast<int>(effect_specs_.size());
-    try {
-      if (!J) {
-        comparison_->ResidualsAndJacobian(spec, {}, r, nullptr, &workspace_);
-        return r->allFinite();
-      }
-      comparison_->ResidualsAndJacobian(spec, model_params_, r, &jacobian_, &workspace_);
-      J->resize(r->size(), num_parameters());
-      J->rightCols(jacobian_.cols()) = jacobian_;
-      for (int i = 0; i < ne; ++i) {
-        const fit::ParameterSpec& s = effect_specs_[i];
-        double h;
-        if (s.log_scale) {
-          h = 1e-5 * std::abs(p(i));
-        } else if (std::isfinite(s.upper - s.lower)) {
-          h = 1e-6 * (s.upper - s.lower);
-        } else {
-          h = 1e-6 * std::max(1.0, std::abs(p(i)));
-        }
-        Eigen::VectorXd plus = p, minus = p;
-        plus(i) += h;
-        minus(i) -= h;
-        model::ModelSpec sp, sm;
-        if (!SpecAt(plus, &sp) || !SpecAt(minus, &sm)) return false;
-        comparison_->ResidualsAndJacobian(sp, {}, &r_plus_, nullptr, &workspace_);
-        comparison_->ResidualsAndJacobian(sm, {}, &r_minus_, nullptr, &workspace_);
-        J->col(i) = (r_plus_ - r_minus_) / (2 * h);
-      }
-      return r->allFinite() && J->allFinite();
-    } catch (const InputError&) {
-      return false;
-    } catch (const NumericalError&) {
-      return false;
-    }
-  }
-
- private:
-  model::ModelSpec base_;
-  const compare::Comparison* comparison_;
-  model::Effect effect_;
-  std::vector<fit::ParameterSpec> effect_specs_;
-  std::vector<int> effect_index_;
-  std::vector<model::ParameterInfo> model_params_;
-  // Reused from evaluation to evaluation (one problem per thread): fresh arrays of this size cost more
-  // in page faults than the response itself.
-  mutable response::FrfWithDerivatives workspace_;
-  mutable Eigen::MatrixXd jacobian_;
-  mutable Eigen::VectorXd r_plus_, r_minus_;
-};
 
 std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const std::vector<std::string>& patterns) {
   if (patterns.empty()) return {};

@@ -201,6 +201,24 @@ class Comparison {
   /// Nf x Nout x Nin x P derivative array costs more in page faults than computing it).
   void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
                             Eigen::VectorXd* r, Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const;
+  /// The same with further columns after those of `params`, one per entry of `further`: derivatives of
+  /// the model's dynamic stiffness (in the generalised coordinates of ModelSystem(spec)) with respect to
+  /// parameters that change only M, C, K and K_loss, such as an effect's (diagnose differences the
+  /// systems of two specs). Throws InputError when an entry is outside the system.
+  void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
+                            const std::vector<response::DynamicStiffnessDerivative>& further, Eigen::VectorXd* r,
+                            Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const;
+
+  /// r of `spec` with the model's responses given: `model_values` in the layout of
+  /// response::FrfArray::values on frequency_hz() (the workspace's frf.values after a call above). For a
+  /// spec whose ModelSystem() equals that of the spec the values came from, and whose geometry
+  /// corrections differ (compliance space: only the measured side moves); ||r|| = Error(spec) then.
+  void ResidualsWithModelResponse(const model::ModelSpec& spec, const Eigen::MatrixXcd& model_values,
+                                  Eigen::VectorXd* r) const;
+
+  /// The second-order system the model `spec` is compared through: its inputs and outputs are the
+  /// compared channels (in raw space at the geometry `spec` corrects).
+  model::SecondOrderSystem ModelSystem(const model::ModelSpec& spec) const;
 
   /// The error with its breakdown by element and band, and the model's FRFs on the grid.
   ComparisonResult Evaluate(const model::ModelSpec& spec) const;
@@ -270,6 +288,8 @@ class Comparison {
   // measured side.
   void CalcLogErrors(const Eigen::MatrixXcd& model_values, const std::vector<Eigen::MatrixXcd>& measured,
                      Eigen::VectorXcd* e) const;
+  // r (header) from the log errors and the side's weights.
+  void WeightResiduals(const Eigen::VectorXcd& e, const MeasuredSide& side, Eigen::VectorXd* r) const;
 
   ComparisonSpace space_ = ComparisonSpace::kCompliance;
   measurement::FrfQuantity quantity_ = measurement::FrfQuantity::kAccelerance;
