@@ -8,6 +8,8 @@
 #include "compare_test_util.h"
 #include "stagefit/common/error.h"
 #include "stagefit/measurement/projection.h"
+#include "stagefit/model/assembled_model.h"
+#include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/model/parameters.h"
 
@@ -153,6 +155,50 @@ TEST_F(ResidualsTest, JacobianMatchesCentralDifferencesInRawSpace) {
   const Comparison comparison = Comparison::Create(spec_, data_, options);
   const auto params = model::MatchParameters(perturbed, {"hexapod.k.D?", "hexapod.c.Dz", "rz.k.Ry"});
   CheckJacobian(perturbed, comparison, params);
+}
+
+// Further columns given as dynamic-stiffness derivatives are the same columns as the parameters'
+// own: the two paths into the FRF derivatives agree, whichever columns come first.
+TEST_F(ResidualsTest, FurtherColumnsFromSystemDerivativesEqualTheParametersColumns) {
+  model::ModelSpec perturbed = spec_;
+  model::SetParameter(perturbed, model::FindParameter(perturbed, "hexapod.k.Dx"), 1.2e7);
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  const auto params = model::MatchParameters(perturbed, {"hexapod.k.D?", "ry.c.Dx"});
+  const auto assembled = model::AssembledModel::Assemble(perturbed);
+  std::vector<response::DynamicStiffnessDerivative> further;
+  for (const auto& p : params) {
+    further.push_back(response::MakeDynamicStiffnessDerivative(model::CalcSystemDerivative(assembled, p), p.name));
+  }
+  Eigen::VectorXd r, r_further;
+  Eigen::MatrixXd J, J_further;
+  response::FrfWithDerivatives workspace;
+  comparison.ResidualsAndJacobian(perturbed, params, &r, &J);
+  comparison.ResidualsAndJacobian(perturbed, {params[0]}, further, &r_further, &J_further, &workspace);
+  ASSERT_EQ(J_further.cols(), 1 + J.cols());
+  EXPECT_EQ(r, r_further);
+  EXPECT_LT((J_further.col(0) - J.col(0)).norm(), 1e-12 * J.col(0).norm());
+  EXPECT_LT((J_further.rightCols(J.cols()) - J).norm(), 1e-12 * J.norm());
+
+  // An entry outside the model's coordinates is refused.
+  further[0].entries.push_back({assembled.num_dofs(), 0, 1.0, 0.0, 0.0});
+  EXPECT_THROW(comparison.ResidualsAndJacobian(perturbed, {}, further, &r_further, &J_further, &workspace), InputError);
+}
+
+// The residuals with the model's responses given are the residuals: in compliance space, of a spec
+// whose geometry correction re-projects the measurement, with the responses of the uncorrected model.
+TEST_F(ResidualsTest, ResidualsWithTheModelsResponsesGivenAreTheResiduals) {
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  model::ModelSpec corrected = spec_;
+  model::ApplyEffect(corrected, model::ParseEffect("sensor-geometry@" + comparison.CorrectableChannels()[1] + ":rz=5 deg",
+                                                   corrected, comparison.CorrectableChannels()));
+  ASSERT_EQ(comparison.ModelSystem(corrected).Cq, comparison.ModelSystem(spec_).Cq);
+  Eigen::VectorXd r, r_given, r_plain;
+  response::FrfWithDerivatives workspace;
+  comparison.ResidualsAndJacobian(spec_, {}, &r_plain, nullptr, &workspace);
+  comparison.ResidualsWithModelResponse(corrected, workspace.frf.values, &r_given);
+  comparison.Residuals(corrected, &r);
+  EXPECT_LT((r_given - r).norm(), 1e-12 * r.norm());
+  EXPECT_GT((r - r_plain).norm(), 1e-3 * r.norm());  // the correction does move the residuals
 }
 
 TEST_F(ResidualsTest, CoherenceWeightsReduceTheInfluenceOfALowCoherencePoint) {
