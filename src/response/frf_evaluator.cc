@@ -82,36 +82,56 @@ std::vector<int> SupportOf(const std::vector<DynamicStiffnessDerivative>& deriva
 }
 
 // dH_q += -s^p e^{-s tau} dZ_q(s)(i, j) Y(:, i) X(j, :) for the block of rows [f0, f0 + nb) of the
-// outputs. `block` holds Y and X (complex, nb rows) in the Layout columns.
+// outputs. `block` holds Y and X (complex, nb rows) in the Layout columns. The entries of one column j
+// (consecutive, as MakeDynamicStiffnessDerivative orders them) share X(j, :): their terms are summed as
+// G = sum_i g_ij Y(:, i) first (`grouped`, nb x Nout), then multiplied by X(j, :) once. A dense
+// derivative (a mass over a chain of joints: hundreds of entries) then costs Nout per entry, not
+// Nout Nin.
 void AccumulateDerivatives(const Eigen::Ref<const Eigen::ArrayXd>& omega, const Eigen::ArrayXcd& prefactor,
                            Eigen::Index f0, const Eigen::MatrixXcd& block, const Layout& layout,
                            const std::vector<int>& position,
                            const std::vector<DynamicStiffnessDerivative>& derivatives,
-                           std::vector<Eigen::MatrixXcd>* out, Eigen::ArrayXcd* factor, Eigen::ArrayXcd* scaled_x) {
+                           std::vector<Eigen::MatrixXcd>* out, Eigen::ArrayXcd* factor, Eigen::MatrixXcd* grouped) {
   const Eigen::Index nb = omega.size();
   auto g = factor->head(nb);
-  auto gx = scaled_x->head(nb);
+  if (grouped->rows() < nb || grouped->cols() != layout.no) grouped->resize(std::max(nb, grouped->rows()), layout.no);
   for (size_t q = 0; q < derivatives.size(); ++q) {
     Eigen::MatrixXcd& d = (*out)[q];
-    if (derivatives[q].entries.empty()) d.middleRows(f0, nb).setZero();
+    const auto& entries = derivatives[q].entries;
+    if (entries.empty()) d.middleRows(f0, nb).setZero();
     bool first = true;
-    for (const auto& e : derivatives[q].entries) {
-      // g = -s^p e^{-s tau} (stiffness + s damping + s^2 mass), s = j omega.
-      g = -prefactor.head(nb) * (e.stiffness + (kJ * e.damping) * omega - e.mass * omega.square());
-      const int si = position[e.row], sj = position[e.col];
-      for (int i = 0; i < layout.ni; ++i) {
-        gx = g * block.col(layout.x() + sj + layout.ns * i).head(nb).array();
+    for (size_t a = 0; a < entries.size();) {
+      size_t b = a;
+      while (b < entries.size() && entries[b].col == entries[a].col) ++b;
+      for (size_t k = a; k < b; ++k) {
+        const auto& e = entries[k];
+        // g = -s^p e^{-s tau} (stiffness + s damping + s^2 mass), s = j omega.
+        g = -prefactor.head(nb) * (e.stiffness + (kJ * e.damping) * omega - e.mass * omega.square());
+        const int si = position[e.row];
         for (int o = 0; o < layout.no; ++o) {
           const auto y = block.col(layout.y() + o + layout.no * si).head(nb).array();
+          auto sum = grouped->col(o).head(nb).array();
+          if (k == a) {
+            sum = g * y;
+          } else {
+            sum += g * y;
+          }
+        }
+      }
+      const int sj = position[entries[a].col];
+      for (int i = 0; i < layout.ni; ++i) {
+        const auto x = block.col(layout.x() + sj + layout.ns * i).head(nb).array();
+        for (int o = 0; o < layout.no; ++o) {
           auto target = d.col(o + layout.no * i).segment(f0, nb).array();
           if (first) {
-            target = y * gx;
+            target = grouped->col(o).head(nb).array() * x;
           } else {
-            target += y * gx;
+            target += grouped->col(o).head(nb).array() * x;
           }
         }
       }
       first = false;
+      a = b;
     }
   }
 }
@@ -510,7 +530,6 @@ void FrfEvaluator::BlockWorkspace::Resize(Eigen::Index block_size, int cols, boo
   fit(block, block_size, cols);
   grow(prefactor, block_size);
   grow(factor, block_size);
-  grow(scaled_x, block_size);
   grow(scratch1, block_size);
   grow(scratch2, block_size);
   grow(scratch3, block_size);
@@ -629,7 +648,7 @@ void FrfEvaluator::EvaluateModalBlock(const Eigen::VectorXd& omega_rad_s, Eigen:
     if (power == 1) pre *= kJ * w;
     if (power == 2) pre *= -w.square();
     AccumulateDerivatives(w, ws->prefactor, f0, ws->block, layout, position, *derivatives, d_values,
-                          &ws->factor, &ws->scaled_x);
+                          &ws->factor, &ws->grouped);
   }
 }
 
@@ -654,7 +673,6 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
   ws.block.resize(block, layout.cols());
   ws.prefactor.resize(block);
   ws.factor.resize(block);
-  ws.scaled_x.resize(block);
   Eigen::MatrixXcd Z(n, n), F(n, layout.ni), X(n, layout.ni), H(layout.no, layout.ni), Y(n, layout.no);
   const Eigen::MatrixXcd CqT = sys.Cq.transpose().cast<Complex>();
   Eigen::PartialPivLU<Eigen::MatrixXcd> lu(n);
@@ -691,7 +709,7 @@ void FrfEvaluator::EvaluateDirect(const Eigen::VectorXd& omega_rad_s, int power,
     }
     if (derivatives) {
       AccumulateDerivatives(w, ws.prefactor, f0, ws.block, layout, position, *derivatives, d_values,
-                            &ws.factor, &ws.scaled_x);
+                            &ws.factor, &ws.grouped);
     }
   }
 }

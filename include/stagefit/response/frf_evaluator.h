@@ -206,7 +206,8 @@ class FrfEvaluator {
   struct BlockWorkspace {
     Eigen::MatrixXcd block, coef_complex;
     Eigen::MatrixXd coef_real, block_real;
-    Eigen::ArrayXcd prefactor, factor, scaled_x;
+    Eigen::ArrayXcd prefactor, factor;
+    Eigen::MatrixXcd grouped;  // AccumulateDerivatives' sums over one column's entries (nb x Nout)
     Eigen::ArrayXd scratch1, scratch2, scratch3;
     void Resize(Eigen::Index block_size, int cols, bool real, Eigen::Index num_real_rows, int num_complex);
   };
