@@ -116,12 +116,17 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     throw InputError("comparison: bands per octave " + std::to_string(options.bands_per_octave) +
                      ", expected >= 1");
   }
+  if (!(options.frf_check_tolerance >= 0.0)) {
+    throw InputError("comparison: FRF check tolerance " + std::to_string(options.frf_check_tolerance) +
+                     ", expected a value >= 0");
+  }
 
   Comparison c;
   c.space_ = options.space;
   c.source_ = measurement.source;
   c.quantity_ = options.quantity.value_or(measurement.quantity);
   c.bands_per_octave_ = options.bands_per_octave;
+  c.frf_options_.check_tolerance = options.frf_check_tolerance;
 
   // Frequencies in the band.
   std::vector<int> rows;
@@ -426,7 +431,7 @@ std::vector<std::string> Comparison::CorrectableChannels() const {
 
 std::vector<Eigen::MatrixXcd> Comparison::EvaluateModel(const model::ModelSpec& spec) const {
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
-  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
+  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled), frf_options_);
   const response::FrfArray frf = evaluator.Evaluate(frequency_hz_, ToResponseQuantity(quantity_));
   std::vector<Eigen::MatrixXcd> out(num_frequencies());
   for (int k = 0; k < num_frequencies(); ++k) out[k] = frf.At(k);
@@ -517,7 +522,7 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       response::FrfWithDerivatives* workspace) const {
   STAGEFIT_ASSERT(r != nullptr && workspace != nullptr, "r and workspace must not be null");
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
-  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled));
+  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled), frf_options_);
   const auto quantity = ToResponseQuantity(quantity_);
   const int np = num_points();
   const int num_columns = static_cast<int>(params.size() + further.size());

@@ -102,7 +102,8 @@ TEST_F(ResidualsTest, ResidualNormEqualsErrorAndBreakdownAgrees) {
 // Central differences with relative step h = 1e-6 p: truncation error ~ (h/p)^2 = 1e-12 of the column
 // (kJacobianTolerance = 1e-6 of the column's largest entry covers it with margin, and still catches a
 // wrong sign, factor or missing term, all O(1)). Rounding: each evaluation of r carries a relative
-// error up to the response layer's modal/direct agreement (check_tolerance 1e-10), which the difference
+// error up to the response layer's modal/direct agreement (below 1e-12 for these models: checked
+// below; bounded here by 1e-10), which the difference
 // quotient divides by the step: kEvaluationRounding * max|r| / h. This term dominates for parameters
 // with a weak influence (damping, whose effect is confined to the resonances).
 constexpr double kFdRelativeStep = 1e-6;
@@ -111,6 +112,7 @@ constexpr double kEvaluationRounding = 1e-10;
 
 void CheckJacobian(const model::ModelSpec& spec, const Comparison& comparison,
                    const std::vector<model::ParameterInfo>& params) {
+  EXPECT_LT(response::FrfEvaluator::Create(comparison.ModelSystem(spec)).setup_summary().check_error, 1e-12);
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   comparison.ResidualsAndJacobian(spec, params, &r, &J);
@@ -297,6 +299,26 @@ TEST_F(ResidualsTest, ComplianceSpaceWithoutGeometryIsRejected) {
   measurement::FrfData bare = data_;
   for (auto& c : bare.outputs) c.body.clear();
   EXPECT_THROW(Comparison::Create(spec_, bare), InputError);
+}
+
+TEST_F(ResidualsTest, OptionsOutOfRangeAreRejectedByName) {
+  auto expect_rejected = [&](const ComparisonOptions& options, const std::string& what) {
+    try {
+      Comparison::Create(spec_, data_, options);
+      ADD_FAILURE() << what << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  ComparisonOptions options;
+  options.frf_check_tolerance = -1e-8;
+  expect_rejected(options, "FRF check tolerance");
+  options = {};
+  options.coherence_weight_cap = 0;
+  expect_rejected(options, "coherence weight cap");
+  options = {};
+  options.bands_per_octave = 0;
+  expect_rejected(options, "bands per octave");
 }
 
 TEST(ParseComparisonSpace, RejectsUnknownNames) {

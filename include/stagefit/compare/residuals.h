@@ -126,6 +126,13 @@ struct ComparisonOptions {
   std::optional<measurement::FrfQuantity> quantity;
   /// Bands of the breakdown: 1 = octaves, 3 = third octaves (measurement::MakeFractionalOctaveBands).
   int bands_per_octave = 3;
+  /// The model's responses are computed on the modal path unless it differs from a direct solve by
+  /// more than this (relative) at the probe frequencies (response::FrfEvaluatorOptions::check_tolerance,
+  /// >= 0). The comparison resolves log ratios of about 1e-4 at best (1 % noise), so 1e-8 is exact for
+  /// it; the response layer's own 1e-10 sent a fifth of a diagnosis' candidate models (a stiffness
+  /// probed at 1/8 of its value puts a mode near 0 Hz; modal and direct then differ by 1e-10..1e-8) to
+  /// the direct solve per frequency, ten times slower (docs/diagnose.md).
+  double frf_check_tolerance = 1e-8;
 };
 
 /// One element (output o, input i) of the compared FRF matrix.
@@ -304,6 +311,7 @@ class Comparison {
   double weight_norm_ = 1.0;  // sqrt(sum w^2)
   bool weights_are_snr_ = false;
   int bands_per_octave_ = 3;
+  response::FrfEvaluatorOptions frf_options_;
   Eigen::Vector3d p_WXo_ = Eigen::Vector3d::Zero();
   std::vector<model::InputSpec> model_inputs_;
   std::vector<model::OutputSpec> model_outputs_;
