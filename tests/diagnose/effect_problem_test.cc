@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -108,7 +109,13 @@ INSTANTIATE_TEST_SUITE_P(
         RouteCase{"sensor-geometry@a1y:dx=0.01 m,dz=-0.01 m,rx=0.05 rad,rz=0.1 rad", kCompliance,
                   EffectColumnRoute::kMeasuredDifference},
         RouteCase{"sensor-geometry@a1y:dx=0.01 m,dz=-0.01 m,rx=0.05 rad,rz=0.1 rad", kRaw,
-                  EffectColumnRoute::kResidualDifference}));
+                  EffectColumnRoute::kResidualDifference}),
+    [](const ::testing::TestParamInfo<RouteCase>& info) {
+      std::string name = info.param.with.substr(0, info.param.with.find('@'));
+      name += info.param.space == kRaw ? "_raw" : "_compliance";
+      for (char& c : name) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+      return name;
+    });
 
 }  // namespace
 }  // namespace stagefit::diagnose
