@@ -563,28 +563,40 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   }
   // 3. Is the leader's effect needed? Its fit moved the model's own parameters too, and may have
   // carried them out of a local minimum the baseline fit stopped in. Refit the model without the
-  // effect from the leader's parameters: when that lowers the baseline's error, the baseline was not
-  // at its optimum; the candidates are scored again against the better baseline (an effect-free
-  // measurement whose baseline fit stopped short otherwise credits the first effect that frees it).
+  // effect from the leader's parameters, and (first round) from the model as given with several starts
+  // (DiagnoseOptions::refit_starts): when that lowers the baseline's error, the baseline was not at its
+  // optimum; the candidates are scored again against the better baseline (an effect-free measurement
+  // whose baseline fit stopped short otherwise credits the first effect that frees it).
   for (int round = 0; round < 2 && !model_params.empty() && !unique.empty() && unique[0].helps; ++round) {
-    model::ModelSpec refit = summary.baseline;
+    struct Refit {
+      model::ModelSpec spec;
+      int starts = 1;
+      std::string from;
+      double error = std::numeric_limits<double>::infinity();
+    };
+    std::vector<Refit> refits(1);
+    refits[0].spec = summary.baseline;
     for (const auto& p : model_params) {
       const auto it = unique[0].model_parameters.find(p.name);
-      if (it != unique[0].model_parameters.end()) model::SetParameter(refit, p, it->second);
+      if (it != unique[0].model_parameters.end()) model::SetParameter(refits[0].spec, p, it->second);
     }
-    fit::FitOptions fo;
-    fo.max_iterations = options.baseline_iterations;
-    try {
-      fit::FitModel(refit, comparison, model_params, fo);
-    } catch (const std::exception&) {
-      break;
+    refits[0].from = "the model parameters of " + unique[0].with;
+    if (round == 0 && options.refit_starts > 1) refits.push_back({spec, options.refit_starts, "the model as given"});
+    for (auto& r : refits) {
+      fit::FitOptions fo;
+      fo.max_iterations = options.baseline_iterations;
+      fo.num_starts = r.starts;
+      try {
+        fit::FitModel(r.spec, comparison, model_params, fo);
+        r.error = comparison.Error(r.spec);
+      } catch (const std::exception&) {
+      }
     }
-    const double error = comparison.Error(refit);
-    if (!(error < summary.error_baseline)) break;
-    say("baseline refitted from the model parameters of " + unique[0].with +
-        Format(": error %.4f -> %.4f", summary.error_baseline, error));
-    summary.baseline = refit;
-    summary.error_baseline = error;
+    const Refit& best = *std::min_element(refits.begin(), refits.end(), [](const Refit& a, const Refit& b) { return a.error < b.error; });
+    if (!(best.error < summary.error_baseline)) break;
+    say("baseline refitted from " + best.from + Format(": error %.4f -> %.4f", summary.error_baseline, best.error));
+    summary.baseline = best.spec;
+    summary.error_baseline = best.error;
     for (auto& c : unique) rescore(&c, full_scale());
     SortByBic(&unique);
   }
