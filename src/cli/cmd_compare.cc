@@ -117,6 +117,8 @@ void RunCompare(const CompareFlags& f) {
               f.common.model_path.empty() ? " (embedded default)" : "", f.measurement.c_str(),
               measurement::ToString(data.quantity).c_str(), data.num_outputs(), data.num_inputs());
   std::fputs(summary.BriefReport().c_str(), stdout);
+  const compare::NoiseFloor floor = summary.comparison.CalcNoiseFloor();
+  std::fputs(compare::NoiseFloorLine(summary.result.error, floor).c_str(), stdout);
   if (!summary.raw_skipped.empty() && options.comparison.space == compare::ComparisonSpace::kCompliance) {
     std::printf("raw channels not compared: %s\n", summary.raw_skipped.c_str());
   }
@@ -131,6 +133,7 @@ void RunCompare(const CompareFlags& f) {
                              {"model", spec.name},
                              {"measurement", f.measurement},
                              {"error", summary.result.error},
+                             {"noise_floor", NoiseFloorJson(summary.result.error, floor)},
                              {"breakdown", BreakdownJson(summary.comparison, summary.result)},
                              {"modes", ModesJson(summary.modes)}};
     if (summary.raw && summary.raw_result) {

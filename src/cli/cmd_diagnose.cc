@@ -78,7 +78,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
       for (const auto& c : summary.candidates) {
         candidates.push_back({{"effect", c.effect.name}, {"location", c.effect.location}, {"with", c.with},
                               {"error_after", c.error_after}, {"delta_bic", c.delta_bic}, {"helps", c.helps},
-                              {"parameters", c.effect.parameters}, {"explanation", c.explanation}});
+                              {"parameters", c.effect.parameters}, {"explanation", c.explanation},
+                              {"implausible", c.implausible.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.implausible)}});
       }
       nlohmann::json bands = nlohmann::json::array(), elements = nlohmann::json::array(), modes = nlohmann::json::array();
       for (const auto& b : summary.worst_bands) {
@@ -104,6 +105,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
       nlohmann::json report = {{"command", "diagnose"},
                                {"error", summary.error_initial},
                                {"error_baseline", summary.error_baseline},
+                               {"noise_floor", NoiseFloorJson(summary.error_baseline, summary.noise_floor)},
                                {"effect_found", summary.effect_found},
                                {"verdict", summary.verdict},
                                {"candidates", candidates},

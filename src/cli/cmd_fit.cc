@@ -187,13 +187,16 @@ void RegisterFitCommand(CLI::App& app) {
     if (progress_shown) std::fprintf(stderr, "\n");
 
     std::printf("%s\n%s", summary.BriefReport().c_str(), summary.FullReport().c_str());
+    const compare::NoiseFloor floor = comparison.CalcNoiseFloor();
+    std::fputs(compare::NoiseFloorLine(summary.final_error, floor).c_str(), stdout);
     if (!o->out.empty()) {
       model::WriteModelFile(o->out, spec);
       std::printf("wrote %s\n", o->out.c_str());
     }
     if (!o->common.report_path.empty()) {
-      WriteReport(o->common.report_path,
-                  MakeReport(summary, comparison, recipe.measurement, ModelSource(model_options), o->out), inputs);
+      nlohmann::json report = MakeReport(summary, comparison, recipe.measurement, ModelSource(model_options), o->out);
+      report["noise_floor"] = NoiseFloorJson(summary.final_error, floor);
+      WriteReport(o->common.report_path, report, inputs);
     }
     ExitCode() = summary.converged() ? kExitOk : kExitNumerics;
   });

@@ -18,6 +18,13 @@ std::string ModelSource(const CommonOptions& options) {
   return options.model_path.empty() ? "<embedded micro-station>" : options.model_path;
 }
 
+nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor) {
+  if (!floor.known) return nullptr;
+  return {{"floor", floor.floor},
+          {"sd", floor.sd},
+          {"error_over_floor", floor.floor > 0.0 ? nlohmann::json(error / floor.floor) : nlohmann::json(nullptr)}};
+}
+
 void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs) {
   std::vector<std::filesystem::path> input_paths(inputs.begin(), inputs.end());
   CheckNotAnInput(path, input_paths);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "command.h"
+#include "stagefit/compare/residuals.h"
 #include "stagefit/model/model_spec.h"
 
 namespace stagefit::cli {
@@ -16,6 +17,10 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
 
 /// "<embedded micro-station>" or the --model path, for messages.
 std::string ModelSource(const CommonOptions& options);
+
+/// {"floor", "sd", "error_over_floor"} of compare::Comparison::CalcNoiseFloor() for `error`; null when
+/// the measurement has no coherence (the floor is unknown).
+nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor);
 
 /// Writes `report` as indented JSON, atomically, refusing to overwrite any of `inputs`.
 void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs);

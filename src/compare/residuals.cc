@@ -2,6 +2,8 @@
 
 #include "stagefit/kinematics/rigid_transform.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -155,6 +157,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   c.weight_cap_ = cap;
   c.min_element_snr_ = options.min_element_snr;
   c.weights_.assign(nf, Eigen::MatrixXd());
+  c.snr_.assign(nf, Eigen::MatrixXd());
   c.measured_.assign(nf, Eigen::MatrixXcd());
 
   if (options.space == ComparisonSpace::kCompliance) {
@@ -194,16 +197,25 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     // Weights: propagate the raw noise through the projection (header).
     for (int k = 0; k < nf; ++k) {
       Eigen::MatrixXd w = Eigen::MatrixXd::Ones(6, 6);
+      Eigen::MatrixXd snr_k = Eigen::MatrixXd::Constant(6, 6, std::numeric_limits<double>::infinity());
       if (use_coherence) {
         const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
         Eigen::MatrixXd var_L(measurement.num_outputs(), measurement.num_inputs());
+        // For the noise floor: (1 - gamma^2) |H_meas|^2, whose expectation is the noise variance
+        // sigma^2 itself (|H_meas|^2 averages |H|^2 + sigma^2, and 1 - gamma^2 = sigma^2 / (|H|^2 +
+        // sigma^2)); the weights' |H_meas|^2 / SNR^2 is sigma^2 |H_meas|^2 / |H|^2, high where the raw
+        // coherence is low (docs/error-metric.md §8).
+        Eigen::MatrixXd var_L_floor(var_L.rows(), var_L.cols());
         for (int o = 0; o < var_L.rows(); ++o) {
           for (int i = 0; i < var_L.cols(); ++i) {
             const double snr = raw_snr(k, o, i);
             var_L(o, i) = snr == 0.0 ? std::numeric_limits<double>::infinity()
                                      : std::norm(H_L(o, i)) / (snr * snr);
+            var_L_floor(o, i) = std::isfinite(snr) ? std::norm(H_L(o, i)) / (1.0 + snr * snr) : 0.0;
           }
         }
+        const Eigen::MatrixXd var_X_floor =
+            projected ? var_L_floor : Eigen::MatrixXd(P.cwiseAbs2() * var_L_floor * Q.cwiseAbs2());
         Eigen::MatrixXd var_X;
         if (projected) {
           var_X = var_L;
@@ -217,10 +229,15 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
             const double snr = sigma == 0.0 ? std::numeric_limits<double>::infinity()
                                             : std::abs(c.measured_[k](a, b)) / sigma;
             w(a, b) = std::isfinite(sigma) ? std::min(snr, cap) : 0.0;
+            const double sigma_floor = std::sqrt(var_X_floor(a, b));
+            snr_k(a, b) = !std::isfinite(sigma) ? 0.0
+                          : sigma_floor == 0.0  ? std::numeric_limits<double>::infinity()
+                                                : std::abs(c.measured_[k](a, b)) / sigma_floor;
           }
         }
       }
       c.weights_[k] = w;
+      c.snr_[k] = snr_k;
     }
     // Model side: motion of the point p_WXo of {X}'s body under a wrench there, W axes.
     for (int k = 0; k < 6; ++k) {
@@ -255,10 +272,15 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     for (int k = 0; k < nf; ++k) {
       c.measured_[k] = measurement.frf[rows[k]];
       Eigen::MatrixXd w(measurement.num_outputs(), measurement.num_inputs());
+      Eigen::MatrixXd snr_k(w.rows(), w.cols());
       for (int o = 0; o < w.rows(); ++o) {
-        for (int i = 0; i < w.cols(); ++i) w(o, i) = std::min(raw_snr(k, o, i), cap);
+        for (int i = 0; i < w.cols(); ++i) {
+          snr_k(o, i) = raw_snr(k, o, i);
+          w(o, i) = std::min(snr_k(o, i), cap);
+        }
       }
       c.weights_[k] = w;
+      c.snr_[k] = snr_k;
     }
   }
 
@@ -318,7 +340,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     for (int k = 0; k < nf; ++k) {
       const double w = c.weights_[k](idx.output, idx.input);
       if (w > 0.0 && std::abs(c.measured_[k](idx.output, idx.input)) > 0.0) {
-        c.points_.push_back({e, k, w});
+        c.points_.push_back({e, k, w, c.snr_[k](idx.output, idx.input)});
         sum_w2 += w * w;
       }
     }
@@ -661,6 +683,120 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     }
   }
   return result;
+}
+
+namespace {
+
+// E|ln(1 + z)|^2 and E|ln(1 + z)|^4, z ~ CN(0, s^2), by quadrature: |z|^2 = s^2 u with u ~ Exp(1)
+// (Gauss-Laguerre nodes, exact for moments of u up to 2 n - 1), arg z uniform (midpoints:
+// spectrally accurate for the smooth periodic integrand; the log singularity at z = -1 is integrable
+// and never hit by a node).
+struct GaussRule {
+  Eigen::VectorXd nodes, weights;
+};
+
+const GaussRule& LaguerreRule() {
+  // Golub-Welsch: the nodes are the eigenvalues of the Jacobi matrix of the Laguerre polynomials
+  // (diagonal 2k + 1, off-diagonal k), the weights the squared first components of its eigenvectors.
+  static const GaussRule rule = [] {
+    constexpr int n = 48;
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(n, n);
+    for (int k = 0; k < n; ++k) {
+      J(k, k) = 2.0 * k + 1.0;
+      if (k + 1 < n) J(k, k + 1) = J(k + 1, k) = k + 1.0;
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(J);
+    GaussRule r;
+    r.nodes = eig.eigenvalues();
+    r.weights = eig.eigenvectors().row(0).transpose().array().square();
+    return r;
+  }();
+  return rule;
+}
+
+LogErrorMoments QuadratureMoments(double s) {
+  constexpr int kAngular = 128;
+  const GaussRule& rule = LaguerreRule();
+  double m2 = 0.0, m4 = 0.0;
+  for (int a = 0; a < rule.nodes.size(); ++a) {
+    const double r = s * std::sqrt(rule.nodes(a));
+    double e2_sum = 0.0, e4_sum = 0.0;
+    for (int b = 0; b < kAngular; ++b) {
+      const double phi = 2.0 * M_PI * (b + 0.5) / kAngular;
+      const std::complex<double> e = std::log(std::complex<double>(1.0 + r * std::cos(phi), r * std::sin(phi)));
+      const double e2 = std::norm(e);
+      e2_sum += e2;
+      e4_sum += e2 * e2;
+    }
+    m2 += rule.weights(a) * e2_sum / kAngular;
+    m4 += rule.weights(a) * e4_sum / kAngular;
+  }
+  return {m2, m4};
+}
+
+// The quadrature tabulated on s = 10^(kLogMin + j / kPerDecade), interpolated in log-log.
+constexpr double kTableLogMin = -2.0, kTableLogMax = 2.0;
+constexpr int kTablePerDecade = 24;
+
+const std::vector<LogErrorMoments>& MomentTable() {
+  static const std::vector<LogErrorMoments> table = [] {
+    const int n = static_cast<int>((kTableLogMax - kTableLogMin) * kTablePerDecade) + 1;
+    std::vector<LogErrorMoments> t(n);
+    for (int j = 0; j < n; ++j) t[j] = QuadratureMoments(std::pow(10.0, kTableLogMin + static_cast<double>(j) / kTablePerDecade));
+    return t;
+  }();
+  return table;
+}
+
+}  // namespace
+
+LogErrorMoments ExpectedLogErrorMoments(double s) {
+  if (!(s > 0.0)) return {0.0, 0.0};
+  if (s < std::pow(10.0, kTableLogMin)) {
+    const double s2 = s * s;
+    return {s2 * (1.0 + s2 / 2.0 + 2.0 * s2 * s2 / 3.0), 2.0 * s2 * s2};
+  }
+  const double x = (std::log10(s) - kTableLogMin) * kTablePerDecade;
+  const std::vector<LogErrorMoments>& table = MomentTable();
+  if (!(x < static_cast<double>(table.size() - 1))) return QuadratureMoments(s);
+  const int j = static_cast<int>(x);
+  const double f = x - j;
+  auto interp = [f](double lo, double hi) { return std::exp((1.0 - f) * std::log(lo) + f * std::log(hi)); };
+  return {interp(table[j].m2, table[j + 1].m2), interp(table[j].m4, table[j + 1].m4)};
+}
+
+NoiseFloor Comparison::CalcNoiseFloor() const {
+  NoiseFloor out;
+  if (!weights_are_snr_) return out;
+  double sum_w2 = 0.0, sum_m2 = 0.0, sum_var = 0.0;
+  for (const Point& p : points_) {
+    const double w2 = p.weight * p.weight;
+    sum_w2 += w2;
+    if (!std::isfinite(p.snr)) continue;  // a noise-free point adds nothing
+    const LogErrorMoments m = ExpectedLogErrorMoments(1.0 / p.snr);
+    sum_m2 += w2 * m.m2;
+    sum_var += w2 * w2 * std::max(0.0, m.m4 - m.m2 * m.m2);
+    ++out.num_points;
+  }
+  if (!(sum_w2 > 0.0)) return out;
+  out.known = true;
+  out.floor = std::sqrt(sum_m2 / sum_w2);
+  out.sd = out.floor > 0.0 ? std::sqrt(sum_var) / sum_w2 / (2.0 * out.floor) : 0.0;
+  return out;
+}
+
+std::string NoiseFloorLine(double error, const NoiseFloor& floor) {
+  char line[256];
+  if (!floor.known) {
+    return "noise floor: unknown (the measurement has no coherence; the error cannot be set against its noise)\n";
+  }
+  if (floor.floor > 0.0) {
+    std::snprintf(line, sizeof line, "noise floor %.5f (sd %.5f); model error %.5f = %.2f x floor\n", floor.floor, floor.sd,
+                  error, error / floor.floor);
+  } else {
+    std::snprintf(line, sizeof line, "noise floor 0 (noise-free data); model error %.5f\n", error);
+  }
+  return line;
 }
 
 std::string ComparisonResult::BriefReport(int max_rows) const {

@@ -35,6 +35,14 @@ std::string Format(const char* format, double a = 0, double b = 0, double c = 0)
   return buffer;
 }
 
+/// printf-style text of any arguments (Format() takes doubles only).
+template <typename... Args>
+std::string FormatText(const char* format, Args... args) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof buffer, format, args...);
+  return buffer;
+}
+
 /// Places in the refinement one effect can take at most (at its several locations).
 constexpr int kMaxRefinedPerEffect = 4;
 
@@ -173,6 +181,36 @@ struct Try {
 bool SameCandidate(const Candidate& a, const Candidate& b) {
   return a.effect.name == b.effect.name && a.effect.location == b.effect.location && a.held_parameters == b.held_parameters;
 }
+
+}  // namespace
+
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect) {
+  double stack_kg = 0.0;
+  for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
+  const auto mass = effect.parameters.find("mass");
+  if ((effect.name == "payload" || effect.name == "extra-body") && mass != effect.parameters.end() &&
+      mass->second > stack_kg) {
+    return Format("its fitted mass %.4g kg is more than the whole stack's %.4g kg", mass->second, stack_kg);
+  }
+  const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
+  model::Effect nominal = effect;
+  nominal.parameters = model::DefaultEffectParameters(baseline, effect.name, effect.location);
+  const std::vector<fit::ParameterSpec> specs = EffectParameterSpecs(baseline, nominal, {}, nullptr);
+  for (size_t k = 0; k < def.parameters.size() && k < specs.size(); ++k) {
+    if (def.parameters[k].dimension != dim::kLength) continue;
+    const fit::ParameterSpec& b = specs[k];
+    const double value = effect.parameters.at(def.parameters[k].name);
+    if (!std::isfinite(b.upper - b.lower)) continue;
+    const double margin = 0.01 * (b.upper - b.lower);
+    if (value <= b.lower + margin || value >= b.upper - margin) {
+      return FormatText("%s = %.4g m is at the bound of its search range [%.3g, %.3g] m", def.parameters[k].name.c_str(), value,
+                    b.lower, b.upper);
+    }
+  }
+  return {};
+}
+
+namespace {
 
 void SortByBic(std::vector<Candidate>* candidates) {
   std::sort(candidates->begin(), candidates->end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
@@ -613,6 +651,12 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     for (auto& c : unique) rescore(&c, full_scale());
     SortByBic(&unique);
   }
+  // Physically absurd fits are not claimed (they are kept in the list, marked, after those that help).
+  for (auto& c : unique) {
+    c.implausible = ImplausibleBecause(summary.baseline, c.effect);
+    if (!c.implausible.empty()) c.helps = false;
+  }
+  std::stable_partition(unique.begin(), unique.end(), [](const Candidate& c) { return c.helps; });
   summary.candidates = unique;
   summary.effect_found = !summary.candidates.empty() && summary.candidates[0].helps;
 
@@ -651,18 +695,70 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
   });
 
+  // 5. The verdict, against the noise floor when the measurement's coherence gives it.
+  summary.noise_floor = comparison.CalcNoiseFloor();
+  const compare::NoiseFloor& floor = summary.noise_floor;
+  const bool floor_known = floor.known && floor.floor > 0.0;
+  auto times_floor = [&](double error) { return floor_known ? error / floor.floor : std::numeric_limits<double>::quiet_NaN(); };
+  // Where the remaining error sits, in words: the worst bands and elements (and channels that do not
+  // move rigidly with the others).
+  auto where_words = [&] {
+    std::string text;
+    for (size_t k = 0; k < summary.worst_bands.size() && k < 2; ++k) {
+      text += (text.empty() ? "" : ", ") + Format("%.0f-%.0f Hz", summary.worst_bands[k].band.low_hz, summary.worst_bands[k].band.high_hz) +
+              Format(" (%.0f %%)", 100 * summary.worst_bands[k].share);
+    }
+    std::string elements;
+    for (size_t k = 0; k < summary.worst_elements.size() && k < 3; ++k) {
+      elements += (elements.empty() ? "" : ", ") + summary.worst_elements[k].name + Format(" (%.0f %%)", 100 * summary.worst_elements[k].share);
+    }
+    if (!elements.empty()) text += (text.empty() ? "" : "; elements ") + elements;
+    return text;
+  };
   std::ostringstream verdict;
   if (summary.effect_found) {
     const Candidate& best = summary.candidates[0];
     verdict << "Most likely missing: " << best.effect.name << " at " << best.effect.location << ": " << best.explanation
             << Format(". Adding it lowers the error from %.4f to %.4f. Add it with --with \"", summary.error_baseline, best.error_after)
             << best.with << "\" and refit.";
+    if (floor_known && times_floor(best.error_after) <= kDoneTimesFloor) {
+      verdict << Format(" With it the model is at the noise floor (%.2f x %.4f): done after this refit.", times_floor(best.error_after),
+                        floor.floor);
+    } else if (floor_known && times_floor(best.error_after) > kOutsideTimesFloor) {
+      verdict << Format(" Even with it the error is %.1f x the noise floor %.4f: something outside the catalogue is still missing",
+                        times_floor(best.error_after), floor.floor)
+              << " (the baseline's error is in " << where_words() << ").";
+    }
+  } else if (floor_known && times_floor(summary.error_baseline) <= kDoneTimesFloor) {
+    verdict << Format("Done: the model's error %.4f is %.2f x the noise floor %.4f that the measurement's coherence gives; no "
+                      "effect of the catalogue lowers it by a share that counts, and nothing is left to explain.",
+                      summary.error_baseline, times_floor(summary.error_baseline), floor.floor);
+  } else if (floor_known && times_floor(summary.error_baseline) > kOutsideTimesFloor) {
+    verdict << FormatText("Something outside the catalogue is still missing: the error %.4f after fitting the model's parameters is "
+                      "%.1f x the noise floor %.4f, and no effect of the catalogue lowers it by %.0f %% with a better "
+                      "information criterion",
+                      summary.error_baseline, times_floor(summary.error_baseline), floor.floor, 100 * options.min_relative_improvement);
+    if (!summary.candidates.empty() && !summary.candidates[0].implausible.empty()) {
+      verdict << " (the best fit, " << summary.candidates[0].with << ", is not claimed: " << summary.candidates[0].implausible << ")";
+    }
+    verdict << ". It is in " << where_words() << ".";
+    if (!summary.inconsistent_channels.empty() && summary.rigid_residual_share > 0.2) {
+      verdict << " Channel " << summary.inconsistent_channels[0].channel
+              << Format(" does not move rigidly with the others (%.0f %% of its energy near %.0f Hz): check it first.",
+                        100 * summary.inconsistent_channels[0].share, summary.inconsistent_channels[0].band_hz);
+    }
   } else {
     verdict << Format("No effect of the catalogue explains the remaining error (%.4f after fitting the model's parameters)",
                       summary.error_baseline)
             << ": none lowers it by " << Format("%.0f %%", 100 * options.min_relative_improvement)
-            << " with a better information criterion. The remaining error is measurement noise or something the catalogue "
-               "does not hold; see where it is below.";
+            << " with a better information criterion.";
+    if (floor_known) {
+      verdict << Format(" The error is %.2f x the noise floor %.4f: close to it, but not at it; see where it is below.",
+                        times_floor(summary.error_baseline), floor.floor);
+    } else {
+      verdict << " The remaining error is measurement noise or something the catalogue does not hold (the measurement has "
+                 "no coherence, so its noise floor is unknown); see where it is below.";
+    }
   }
   summary.verdict = verdict.str();
   summary.time_s = Clock() - start;
@@ -681,7 +777,8 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
 
 std::string DiagnoseSummary::BriefReport(int max_candidates) const {
   std::ostringstream out;
-  out << Format("Error: %.4f as given, %.4f after fitting the model's own parameters (baseline)\n\n", error_initial, error_baseline);
+  out << Format("Error: %.4f as given, %.4f after fitting the model's own parameters (baseline)\n", error_initial, error_baseline);
+  out << compare::NoiseFloorLine(error_baseline, noise_floor) << "\n";
   out << "Candidates (ranked by delta BIC against the baseline; < 0 supports the effect):\n";
   out << "  #  effect@location                          error    dBIC       helps  fitted\n";
   for (int i = 0; i < static_cast<int>(candidates.size()) && i < max_candidates; ++i) {

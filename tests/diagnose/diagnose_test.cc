@@ -54,6 +54,31 @@ TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
   const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
   EXPECT_LT(summary.error_baseline, 1.05 * floor);
   EXPECT_FALSE(summary.effect_found);
+  // The coherence's noise floor is the truth's error, and the verdict says the model is done.
+  ASSERT_TRUE(summary.noise_floor.known);
+  EXPECT_NEAR(summary.noise_floor.floor / floor, 1.0, 0.05);
+  EXPECT_EQ(summary.verdict.rfind("Done:", 0), 0u) << summary.verdict;
+}
+
+// Physically absurd fits are named as such: a payload heavier than the whole stack, an offset at the
+// bound of its search range; ordinary values are not.
+TEST(ImplausibleBecause, HeavierThanTheStackOrAtABound) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  double stack_kg = 0;
+  for (const auto& b : nominal.bodies) stack_kg += b.mass_kg;
+  model::Effect payload{"payload", "hexapod", model::DefaultEffectParameters(nominal, "payload", "hexapod")};
+  EXPECT_EQ(ImplausibleBecause(nominal, payload), "");
+  payload.parameters["mass"] = 1.5 * stack_kg;
+  EXPECT_NE(ImplausibleBecause(nominal, payload).find("more than the whole stack"), std::string::npos);
+  payload.parameters["mass"] = 5.0;
+  payload.parameters["z"] = 0.3;  // the bound of a payload's offset (diagnose::EffectParameterSpecs)
+  EXPECT_NE(ImplausibleBecause(nominal, payload).find("z = 0.3 m is at the bound"), std::string::npos)
+      << ImplausibleBecause(nominal, payload);
+  model::Effect offset{"joint-offset", "ty", model::DefaultEffectParameters(nominal, "joint-offset", "ty")};
+  offset.parameters["dz"] = 0.05;
+  EXPECT_EQ(ImplausibleBecause(nominal, offset), "");
+  offset.parameters["dx"] = -0.2995;
+  EXPECT_NE(ImplausibleBecause(nominal, offset).find("dx"), std::string::npos);
 }
 
 // A search on a thinned grid: every candidate is scored on all frequencies, and the result agrees

@@ -135,6 +135,29 @@ struct ComparisonOptions {
   double frf_check_tolerance = 1e-8;
 };
 
+/// E|ln(1 + z)|^2 and E|ln(1 + z)|^4 for z a circular complex Gaussian with E|z|^2 = s^2: the squared log
+/// error (and its square) that relative measurement noise of standard deviation s leaves at one point
+/// between the noise-free truth and the measurement (docs/error-metric.md §8). For small s the first is
+/// s^2 + s^4/2 + 2 s^6/3, the second 2 s^4; beyond, from a quadrature tabulated once. s >= 0.
+struct LogErrorMoments {
+  double m2 = 0;
+  double m4 = 0;
+};
+LogErrorMoments ExpectedLogErrorMoments(double s);
+
+/// The error that the measurement's noise alone leaves: the error scalar of the noise-free truth
+/// against the measurement, as its coherence says (docs/error-metric.md §8).
+struct NoiseFloor {
+  bool known = false;  ///< false without coherence (the noise is then unknown)
+  double floor = 0;    ///< sqrt(E[error^2]) for the noise-free truth
+  double sd = 0;       ///< standard deviation of that error from one noise draw to another
+  int num_points = 0;  ///< points that carry it
+};
+
+/// "noise floor 0.0213 (sd 0.0002); model error 0.0456 = 2.14 x floor", or a line saying the floor is
+/// unknown without coherence.
+std::string NoiseFloorLine(double error, const NoiseFloor& floor);
+
 /// One element (output o, input i) of the compared FRF matrix.
 struct ElementIndex {
   int output = 0;
@@ -227,6 +250,14 @@ class Comparison {
   /// compared channels (in raw space at the geometry `spec` corrects).
   model::SecondOrderSystem ModelSystem(const model::ModelSpec& spec) const;
 
+  /// The error that the measurement's noise alone leaves (header of NoiseFloor): with the relative
+  /// noise s_p = 1 / SNR_p of every used point (uncapped SNR from the coherence, propagated through the
+  /// projection in compliance space),
+  ///     floor^2 = sum_p w_p^2 m2(s_p) / sum_p w_p^2,
+  ///     sd(error^2)^2 = sum_p w_p^4 (m4(s_p) - m2(s_p)^2) / (sum_p w_p^2)^2,  sd = sd(error^2) / (2 floor).
+  /// Assumes the coherence is that of the FRF estimate (as estimate and synthesize write it).
+  NoiseFloor CalcNoiseFloor() const;
+
   /// The error with its breakdown by element and band, and the model's FRFs on the grid.
   ComparisonResult Evaluate(const model::ModelSpec& spec) const;
 
@@ -279,6 +310,7 @@ class Comparison {
     int element = 0;   // index into used_elements_
     int frequency = 0;
     double weight = 0;
+    double snr = 0;  // uncapped signal-to-noise ratio (infinite: noise-free)
   };
 
   Comparison() = default;
@@ -305,6 +337,7 @@ class Comparison {
   std::vector<std::string> output_names_, input_names_;
   std::vector<Eigen::MatrixXcd> measured_;
   std::vector<Eigen::MatrixXd> weights_;
+  std::vector<Eigen::MatrixXd> snr_;  // uncapped SNR of every point (infinite: noise-free)
   Eigen::MatrixXd significance_;
   std::vector<ElementIndex> used_elements_;
   std::vector<Point> points_;

@@ -92,7 +92,22 @@ struct Candidate {
   bool refined = false;          ///< fully fitted (else screening only)
   std::map<std::string, double> model_parameters;  ///< fitted model parameters with the effect
   std::string explanation;       ///< words for a user (top candidates)
+  /// Why the fitted effect is physically absurd (a payload heavier than the stack, an offset at the
+  /// bound of its search range); such a candidate is not claimed (helps = false). Empty otherwise.
+  std::string implausible;
 };
+
+/// Why a fitted effect is physically absurd, or empty: a payload or extra body heavier than the whole
+/// stack (the sum of `baseline`'s body masses), or a length parameter (a joint's stiffness centre, a
+/// payload's CoM offset, a sensor's position) within 1 % of the bound of its search range, where a fit
+/// stops because it cannot go further.
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect);
+
+/// The verdict's thresholds against the noise floor (compare::Comparison::CalcNoiseFloor()): at most
+/// this many times the floor is done; above the second, with no candidate that helps or with the best
+/// one still above it, something outside the catalogue is missing.
+inline constexpr double kDoneTimesFloor = 1.2;
+inline constexpr double kOutsideTimesFloor = 2.0;
 
 struct ModeMismatch {
   double measured_hz = 0;
@@ -109,6 +124,7 @@ struct DiagnoseSummary {
   std::vector<Candidate> candidates;   ///< ranked, best first
   bool effect_found = false;     ///< the best candidate helps
   std::string verdict;           ///< one paragraph
+  compare::NoiseFloor noise_floor;  ///< of the comparison (unknown without coherence)
   // Where.
   std::vector<compare::BandError> worst_bands;
   std::vector<compare::ElementError> worst_elements;

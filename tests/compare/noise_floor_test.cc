@@ -1,0 +1,157 @@
+// The noise floor (docs/error-metric.md §8): the moments of the log error of relative complex Gaussian
+// noise against sampling, and the floor against the error of the noise-free truth on noisy data made by
+// the independent brute-force generator, in both comparison spaces.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <random>
+#include <vector>
+
+#include "stagefit/compare/residuals.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/model/parameters.h"
+#include "stagefit/synthetic/synthetic_measurement.h"
+
+namespace stagefit::compare {
+namespace {
+
+// Sample moments of |ln(1 + z)|^2, z ~ CN(0, s^2), with the standard error of the second moment.
+struct SampledMoments {
+  double m2 = 0, m2_se = 0, m4 = 0;
+};
+SampledMoments Sample(double s, int n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, s / std::sqrt(2.0));
+  double sum = 0, sum_sq = 0;
+  for (int k = 0; k < n; ++k) {
+    const double e2 = std::norm(std::log(std::complex<double>(1.0 + g(rng), g(rng))));
+    sum += e2;
+    sum_sq += e2 * e2;
+  }
+  SampledMoments m;
+  m.m2 = sum / n;
+  m.m4 = sum_sq / n;
+  m.m2_se = std::sqrt((m.m4 - m.m2 * m.m2) / n);
+  return m;
+}
+
+TEST(ExpectedLogErrorMoments, SmallNoiseIsTheRelativeVariance) {
+  // ln(1 + z) = z - z^2/2 + ...: E|.|^2 = s^2 + s^4/2 + O(s^6), E|.|^4 = E|z|^4 = 2 s^4 + O(s^6).
+  for (double s : {1e-4, 1e-3, 5e-3}) {
+    const LogErrorMoments m = ExpectedLogErrorMoments(s);
+    EXPECT_NEAR(m.m2 / (s * s), 1.0 + s * s / 2.0, 1e-9) << s;
+    EXPECT_NEAR(m.m4 / (2 * std::pow(s, 4)), 1.0, 1e-3) << s;
+  }
+  EXPECT_EQ(ExpectedLogErrorMoments(0.0).m2, 0.0);
+}
+
+TEST(ExpectedLogErrorMoments, SeriesAndQuadratureMeetWhereTheyHandOver) {
+  // Below 0.01 the series, above it the tabulated quadrature: they must agree across the seam.
+  const LogErrorMoments below = ExpectedLogErrorMoments(0.0099999), above = ExpectedLogErrorMoments(0.0100001);
+  EXPECT_NEAR(above.m2 / below.m2, 1.0, 1e-4);
+  EXPECT_NEAR(above.m4 / below.m4, 1.0, 1e-3);
+  // Smooth: the interpolated table between two nodes against the series at s = 0.012.
+  const double s = 0.012;
+  EXPECT_NEAR(ExpectedLogErrorMoments(s).m2 / (s * s * (1 + s * s / 2 + 2 * std::pow(s, 4) / 3)), 1.0, 1e-4);
+}
+
+TEST(ExpectedLogErrorMoments, AgreeWithSamplingAtLargeNoise) {
+  // Where the logarithm is far from linear (s = 0.3: |z| reaches 1) the quadrature against 400 000 draws.
+  uint64_t seed = 11;
+  for (double s : {0.05, 0.3, 1.0, 3.0}) {
+    const SampledMoments sampled = Sample(s, 400000, seed++);
+    const LogErrorMoments m = ExpectedLogErrorMoments(s);
+    EXPECT_NEAR(m.m2, sampled.m2, 4 * sampled.m2_se) << "s = " << s;
+    EXPECT_NEAR(m.m4 / sampled.m4, 1.0, 0.05) << "s = " << s;
+  }
+}
+
+class NoiseFloorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    truth_ = model::DefaultModelSpec();
+    const Eigen::Vector3d p = truth_.frames[model::FindFrame(truth_, truth_.compliance_frame)].origin_W;
+    clean_ = synthetic::CalcBruteForceFrf(truth_, synthetic::ComplianceTestSensors("hexapod", p),
+                                          synthetic::ComplianceTestImpacts("hexapod", p),
+                                          synthetic::LogFrequencies(5.0, 500.0, 200),
+                                          measurement::FrfQuantity::kAccelerance);
+  }
+  measurement::FrfData Noisy(double relative, double absolute, uint64_t seed) const {
+    measurement::FrfData data = clean_;
+    synthetic::AddNoise(data, {relative, absolute, seed});
+    return data;
+  }
+  model::ModelSpec truth_;
+  measurement::FrfData clean_;
+};
+
+TEST_F(NoiseFloorTest, TheTruthsErrorIsTheFloorInBothSpaces) {
+  // 20 noise draws at 2 % relative and 1 % absolute noise: the truth's error scatters about the floor
+  // with the predicted standard deviation.
+  for (ComparisonSpace space : {ComparisonSpace::kRaw, ComparisonSpace::kCompliance}) {
+    ComparisonOptions options;
+    options.space = space;
+    std::vector<double> z;
+    double floor = 0, sd = 0;
+    for (uint64_t seed = 1; seed <= 20; ++seed) {
+      const Comparison c = Comparison::Create(truth_, Noisy(0.02, 0.01, seed), options);
+      const NoiseFloor f = c.CalcNoiseFloor();
+      ASSERT_TRUE(f.known);
+      ASSERT_GT(f.sd, 0.0);
+      floor = f.floor;
+      sd = f.sd;
+      z.push_back((c.Error(truth_) - f.floor) / f.sd);
+    }
+    double mean = 0, var = 0;
+    for (double v : z) mean += v / z.size();
+    for (double v : z) var += (v - mean) * (v - mean) / (z.size() - 1);
+    SCOPED_TRACE(ToString(space) + ": floor " + std::to_string(floor) + ", sd " + std::to_string(sd));
+    // The mean of 20 standardised errors has standard deviation 0.22: within 1 of zero is 4.5 sigma.
+    EXPECT_NEAR(mean, 0.0, 1.0);
+    // Their spread is the predicted one (the sample variance of 20 draws is within a factor 3 of 1 at
+    // more than 99.9 %).
+    EXPECT_GT(var, 1.0 / 3.0);
+    EXPECT_LT(var, 3.0);
+    // The floor is of the order of the relative noise: above 2 % (absolute noise adds), far below 1.
+    EXPECT_GT(floor, 0.015);
+    EXPECT_LT(floor, 0.2);
+  }
+}
+
+TEST_F(NoiseFloorTest, AWrongModelIsManyTimesAboveTheFloor) {
+  const Comparison c = Comparison::Create(truth_, Noisy(0.01, 0.005, 3));
+  model::ModelSpec soft = truth_;
+  const auto params = model::MatchParameters(soft, {"hexapod.k.Dz"});
+  ASSERT_EQ(params.size(), 1u);
+  model::SetParameter(soft, params[0], 0.7 * model::GetParameter(soft, params[0]));
+  const NoiseFloor f = c.CalcNoiseFloor();
+  EXPECT_LT(c.Error(truth_), 1.5 * f.floor);
+  EXPECT_GT(c.Error(soft), 3.0 * f.floor);
+}
+
+TEST_F(NoiseFloorTest, UnknownWithoutCoherenceAndZeroForNoiseFreeData) {
+  measurement::FrfData data = Noisy(0.01, 0.0, 4);
+  data.coherence.clear();
+  EXPECT_FALSE(Comparison::Create(truth_, data).CalcNoiseFloor().known);
+  EXPECT_NE(NoiseFloorLine(0.1, Comparison::Create(truth_, data).CalcNoiseFloor()).find("unknown"), std::string::npos);
+
+  measurement::FrfData clean = clean_;
+  clean.coherence.assign(clean.num_frequencies(), Eigen::MatrixXd::Ones(clean.num_outputs(), clean.num_inputs()));
+  const NoiseFloor f = Comparison::Create(truth_, clean).CalcNoiseFloor();
+  EXPECT_TRUE(f.known);
+  EXPECT_EQ(f.floor, 0.0);
+}
+
+TEST(NoiseFloorLine, SaysHowManyTimesAboveTheFloor) {
+  NoiseFloor f;
+  f.known = true;
+  f.floor = 0.02;
+  f.sd = 0.0002;
+  const std::string line = NoiseFloorLine(0.05, f);
+  EXPECT_NE(line.find("noise floor 0.02000"), std::string::npos) << line;
+  EXPECT_NE(line.find("2.50 x floor"), std::string::npos) << line;
+}
+
+}  // namespace
+}  // namespace stagefit::compare
