@@ -198,7 +198,17 @@ void RegisterFitCommand(CLI::App& app) {
       report["noise_floor"] = NoiseFloorJson(summary.final_error, floor);
       WriteReport(o->common.report_path, report, inputs);
     }
-    ExitCode() = summary.converged() ? kExitOk : kExitNumerics;
+    // Exit 3 only when the numerics failed: a failed solver, or a budget that ran out without
+    // lowering the error. A fit that stopped at its budget having lowered it wrote a better model.
+    const bool lowered = summary.final_error < summary.initial_error;
+    const bool failed = summary.status == fit::FitStatus::kFailed ||
+                        (summary.status == fit::FitStatus::kMaxIterations && !lowered);
+    if (summary.status == fit::FitStatus::kMaxIterations && lowered) {
+      std::printf("note: the iteration budget ran out before a tolerance was met; the error fell from %.6g to %.6g "
+                  "(more --max-iterations may lower it further)\n",
+                  summary.initial_error, summary.final_error);
+    }
+    ExitCode() = failed ? kExitNumerics : kExitOk;
   });
 }
 

@@ -43,6 +43,7 @@ void RegisterDiagnoseCommand(CLI::App& app);
 void RegisterDisturbanceCommand(CLI::App& app);
 void RegisterEstimateCommand(CLI::App& app);
 void RegisterCompareCommand(CLI::App& app);
+void RegisterLoopCommand(CLI::App& app);
 void RegisterFitCommand(CLI::App& app);
 void RegisterSimulateCommand(CLI::App& app);
 

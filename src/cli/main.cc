@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   RegisterEstimateCommand(app);
   RegisterCompareCommand(app);
   RegisterFitCommand(app);
+  RegisterLoopCommand(app);
   RegisterSimulateCommand(app);
 
   try {

@@ -1,0 +1,63 @@
+#pragma once
+// The loop of the README as one call: fit the model's parameters, diagnose, add the best effect of
+// the catalogue with its fitted state, refit, and again, until the model is at the noise floor or no
+// effect of the catalogue helps (docs/diagnose.md, "The loop").
+//
+// Each round's diagnosis starts from the model the previous round ended with: its baseline is that
+// model refitted, and its best candidate is applied with the candidate's whole fitted state (effect
+// parameters and the model's parameters, diagnose::ApplyCandidate()), so the round reproduces the
+// candidate's error before its own refit. Effects already added keep their fitted parameters: they are
+// edits of the bodies and joints, and the refits free the model's parameters (`params`) only.
+
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "stagefit/compare/residuals.h"
+#include "stagefit/diagnose/diagnose.h"
+#include "stagefit/fit/least_squares.h"
+#include "stagefit/measurement/frf_data.h"
+#include "stagefit/model/model_spec.h"
+
+namespace stagefit::diagnose {
+
+struct LoopOptions {
+  /// The comparison, the model's parameters (`params`) and the effects tried (`effects`) of every round.
+  DiagnoseOptions diagnose;
+  /// The fits of the model's parameters: the first one, and the refit after each added effect.
+  fit::FitOptions fit;
+  int max_rounds = 4;  ///< effects added at most
+  std::function<void(const std::string&)> progress;  ///< one line per step, for a terminal
+};
+
+/// One step of the loop: what was done and the error after it.
+struct LoopStep {
+  std::string action;  ///< "as given", "fit", "add <with>", "refit"
+  std::string effect;  ///< the --with text of the effect added at this step; empty otherwise
+  double error = 0;
+};
+
+struct LoopSummary {
+  model::ModelSpec initial;            ///< the model as given
+  model::ModelSpec final_model;        ///< with every added effect and its history entries
+  std::vector<LoopStep> history;       ///< in order; history.back().error is the final model's
+  std::vector<std::string> effects_added;
+  compare::NoiseFloor noise_floor;
+  /// Why it stopped: "at the noise floor", "no effect of the catalogue helps", "the round limit", ...
+  std::string stop_reason;
+  std::string last_verdict;            ///< the last diagnosis' verdict
+  double time_s = 0;
+
+  /// The error history as a table (step, action, error, x floor) with the stop reason.
+  std::string HistoryTable() const;
+};
+
+/// Runs the loop on `spec` against `measurement`. Throws as diagnose::Diagnose() does.
+LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options = {});
+
+/// `step,action,effect,error,noise_floor,times_floor` (header first; empty noise fields when the
+/// floor is unknown), one row per step.
+std::string FormatLoopHistory(const LoopSummary& summary);
+
+}  // namespace stagefit::diagnose

@@ -1,0 +1,120 @@
+// `stagefit loop --measurement M [--model F] --out final.toml`: fit, diagnose, add the best effect,
+// refit, again until the model is at the noise floor or nothing in the catalogue helps
+// (diagnose::RunLoop); prints the error history against the noise floor, writes the final model and,
+// with --out-dir, the history and the before/after comparison tables for scripts/plot_loop.sh.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "command.h"
+#include "report.h"
+#include "stagefit/common/atomic_file.h"
+#include "stagefit/common/error.h"
+#include "stagefit/compare/compare_model.h"
+#include "stagefit/diagnose/loop.h"
+#include "stagefit/measurement/measurement_file.h"
+#include "stagefit/model/model_file.h"
+
+namespace stagefit::cli {
+
+void RegisterLoopCommand(CLI::App& app) {
+  auto* command = app.add_subcommand(
+      "loop", "fit, diagnose, add the best effect of the catalogue, refit, again until the model is at the noise "
+              "floor or nothing helps; writes the final model");
+  struct Options {
+    CommonOptions common;
+    std::string measurement, out, out_dir;
+    std::string space = "compliance";
+    std::string params = "*.k.*";
+    std::string effects;
+    double fmin = 0, fmax = 0;
+    int max_rounds = 4;
+  };
+  auto o = std::make_shared<Options>();
+  AddCommonOptions(*command, o->common);
+  AddWithOption(*command, o->common);
+  command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
+  command->add_option("--out", o->out, "write the final model file (TOML) here")->required();
+  command->add_option("--out-dir", o->out_dir,
+                      "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
+  command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
+      ->check(CLI::IsMember({"compliance", "raw"}));
+  command->add_option("--params", o->params, "model parameters fitted in every step (comma-separated patterns)")
+      ->capture_default_str();
+  command->add_option("--effects", o->effects, "only these catalogue effects (comma-separated); default all");
+  command->add_option("--max-rounds", o->max_rounds, "effects added at most (default 4)")->check(CLI::PositiveNumber);
+  command->add_option("--fmin", o->fmin, "lower end of the band, Hz");
+  command->add_option("--fmax", o->fmax, "upper end of the band, Hz");
+  command->callback([o] {
+    const std::vector<std::string> inputs = {o->common.model_path, o->measurement};
+    CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
+    // The outputs' folders before the long run, not after it.
+    if (!o->out_dir.empty()) std::filesystem::create_directories(o->out_dir);
+    const std::filesystem::path out_parent = std::filesystem::absolute(o->out).parent_path();
+    if (!std::filesystem::is_directory(out_parent)) {
+      throw InputError("--out " + o->out + ": the folder " + out_parent.string() + " does not exist");
+    }
+    if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
+    const model::ModelSpec spec = LoadModelFromOptions(o->common);
+    const measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
+    diagnose::LoopOptions options;
+    options.diagnose.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+    if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;
+    if (o->fmax > 0) options.diagnose.comparison.fmax_hz = o->fmax;
+    auto split = [](const std::string& text) {
+      std::vector<std::string> out;
+      std::stringstream s(text);
+      for (std::string item; std::getline(s, item, ',');) {
+        if (!item.empty()) out.push_back(item);
+      }
+      return out;
+    };
+    options.diagnose.params = split(o->params);
+    options.diagnose.effects = split(o->effects);
+    for (const auto& e : options.diagnose.effects) model::FindEffectDefinition(e);
+    options.max_rounds = o->max_rounds;
+    if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "loop: " << line << std::endl; };
+
+    const diagnose::LoopSummary summary = diagnose::RunLoop(spec, data, options);
+    std::printf("Error history (%s space, %d rounds at most):\n%s", o->space.c_str(), o->max_rounds,
+                summary.HistoryTable().c_str());
+    if (!summary.last_verdict.empty()) std::printf("\nLast diagnosis: %s\n", summary.last_verdict.c_str());
+    std::printf("(%.1f s)\n", summary.time_s);
+    model::WriteModelFile(o->out, summary.final_model);
+    std::printf("wrote %s\n", o->out.c_str());
+    if (!o->out_dir.empty()) {
+      const std::filesystem::path dir = o->out_dir;
+      WriteFileAtomically(dir / "loop_history.csv", diagnose::FormatLoopHistory(summary));
+      compare::CompareOptions before_options;
+      before_options.comparison = options.diagnose.comparison;
+      const std::vector<std::filesystem::path> protect = {o->measurement, o->common.model_path, o->out};
+      compare::WriteCompareTables(dir / "before", compare::CompareModel(summary.initial, data, before_options), protect);
+      compare::WriteCompareTables(dir / "after", compare::CompareModel(summary.final_model, data, before_options), protect);
+      std::printf("wrote %s/loop_history.csv, %s/before/, %s/after/ (plots: bash scripts/plot_loop.sh %s)\n",
+                  o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str());
+    }
+    if (!o->common.report_path.empty()) {
+      nlohmann::json history = nlohmann::json::array();
+      for (const auto& s : summary.history) {
+        history.push_back({{"action", s.action}, {"effect", s.effect}, {"error", s.error}});
+      }
+      nlohmann::json report = {{"command", "loop"},
+                               {"measurement", o->measurement},
+                               {"error", summary.history.back().error},
+                               {"error_before", summary.history.front().error},
+                               {"noise_floor", NoiseFloorJson(summary.history.back().error, summary.noise_floor)},
+                               {"history", history},
+                               {"effects_added", summary.effects_added},
+                               {"stop_reason", summary.stop_reason},
+                               {"last_verdict", summary.last_verdict},
+                               {"final_model", o->out},
+                               {"time_s", summary.time_s}};
+      WriteReport(o->common.report_path, report, inputs);
+    }
+  });
+}
+
+}  // namespace stagefit::cli

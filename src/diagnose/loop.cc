@@ -1,0 +1,166 @@
+#include "stagefit/diagnose/loop.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <sstream>
+
+#include "stagefit/fit/model_fit.h"
+#include "stagefit/model/effects.h"
+#include "stagefit/model/parameters.h"
+
+namespace stagefit::diagnose {
+namespace {
+
+double Now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double TimesFloor(double error, const compare::NoiseFloor& floor) {
+  return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options) {
+  const double start = Now();
+  auto say = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  LoopSummary summary;
+  summary.initial = spec;
+  const compare::Comparison comparison = compare::Comparison::Create(spec, measurement, options.diagnose.comparison);
+  summary.noise_floor = comparison.CalcNoiseFloor();
+  const compare::NoiseFloor& floor = summary.noise_floor;
+  auto at_floor = [&](double error) { return TimesFloor(error, floor) <= kDoneTimesFloor; };
+
+  model::ModelSpec current = spec;
+  summary.history.push_back({"as given", "", comparison.Error(current)});
+  // Fits the model's parameters of `model` (a copy is kept when the fit makes it worse).
+  auto refit = [&](model::ModelSpec* model, const std::string& action) {
+    model::ModelSpec trial = *model;
+    const auto params = model::MatchParameters(trial, options.diagnose.params);
+    const double before = comparison.Error(*model);
+    fit::FitModel(trial, comparison, params, options.fit);
+    const double after = comparison.Error(trial);
+    if (after < before) *model = trial;
+    summary.history.push_back({action, "", std::min(after, before)});
+    char line[160];
+    std::snprintf(line, sizeof line, "%s: error %.5f", action.c_str(), summary.history.back().error);
+    say(line);
+  };
+  refit(&current, "fit");
+
+  std::vector<model::Effect> added;  // with their fitted parameters, in order
+  summary.stop_reason = "the round limit";
+  for (int round = 0; round < options.max_rounds; ++round) {
+    if (at_floor(summary.history.back().error)) {
+      summary.stop_reason = "at the noise floor";
+      break;
+    }
+    say("round " + std::to_string(round + 1) + ": diagnose");
+    DiagnoseOptions d = options.diagnose;
+    d.progress = options.progress;
+    const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
+    summary.last_verdict = diagnosis.verdict;
+    if (!diagnosis.effect_found) {
+      summary.stop_reason = "no effect of the catalogue helps";
+      break;
+    }
+    const Candidate& best = diagnosis.candidates[0];
+    model::ModelSpec with = ApplyCandidate(diagnosis, best);
+    const double with_error = comparison.Error(with);
+    if (!(with_error < summary.history.back().error)) {
+      summary.stop_reason = "the best effect does not lower the error of the model the loop holds";
+      break;
+    }
+    summary.history.push_back({"add " + best.effect.name + "@" + best.effect.location, best.with, with_error});
+    // Refit from two starts, the better kept: (a) the candidate's state, the model's parameters as the
+    // diagnosis left them; (b) the model as given with the effects added so far, the new effect's
+    // parameters fitted again together with the model's. The first fit bends the model's parameters to
+    // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
+    // in that basin (1.9x the floor), from (b) it reaches the floor.
+    model::ModelSpec from_given = spec;
+    for (const auto& e : added) model::ApplyEffect(from_given, e);
+    EffectFitOptions eo;
+    eo.max_iterations = options.fit.max_iterations;
+    eo.probe_basins = true;
+    eo.initial_trust_region_radius = 1.0;
+    std::optional<EffectFit> restart;
+    double restart_error = std::numeric_limits<double>::infinity();
+    try {
+      restart = FitEffect(from_given, comparison, best.effect, options.diagnose.params, eo);
+      restart_error = comparison.Error(restart->spec);
+    } catch (const std::exception&) {
+      restart.reset();
+    }
+    refit(&with, "refit");
+    model::Effect effect = best.effect;
+    if (restart && restart_error < summary.history.back().error) {
+      summary.history.back() = {"refit (effect and model from the model as given)", restart->effect.ToString(), restart_error};
+      with = restart->spec;
+      effect = restart->effect;
+      say("refit from the model as given: error " + std::to_string(restart_error));
+    }
+    added.push_back(effect);
+    summary.effects_added.push_back(effect.ToString());
+    current = with;
+  }
+  if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {
+    summary.stop_reason = "at the noise floor";
+  }
+  // The final model's history: the model's own, then every step of the loop.
+  current.history = spec.history;
+  for (size_t k = 1; k < summary.history.size(); ++k) {
+    const LoopStep& step = summary.history[k];
+    current.history.push_back({"loop: " + step.action, step.error, step.effect.empty() ? "" : "--with " + step.effect});
+  }
+  summary.final_model = current;
+  summary.time_s = Now() - start;
+  return summary;
+}
+
+std::string LoopSummary::HistoryTable() const {
+  std::ostringstream out;
+  char line[512];
+  std::snprintf(line, sizeof line, "  %-4s %-52s %10s %9s\n", "step", "action", "error", "x floor");
+  out << line;
+  for (size_t k = 0; k < history.size(); ++k) {
+    const double t = TimesFloor(history[k].error, noise_floor);
+    char times[32] = "-";
+    if (std::isfinite(t)) std::snprintf(times, sizeof times, "%.2f", t);
+    std::snprintf(line, sizeof line, "  %-4zu %-52s %10.5f %9s\n", k, history[k].action.c_str(), history[k].error, times);
+    out << line;
+  }
+  out << compare::NoiseFloorLine(history.empty() ? 0.0 : history.back().error, noise_floor);
+  out << "stopped: " << stop_reason;
+  if (!effects_added.empty()) {
+    out << "; effects added:";
+    for (const auto& e : effects_added) out << " --with \"" << e << "\"";
+  }
+  out << "\n";
+  return out.str();
+}
+
+std::string FormatLoopHistory(const LoopSummary& summary) {
+  std::ostringstream out;
+  out << "step,action,effect,error,noise_floor,times_floor\n";
+  char number[64];
+  for (size_t k = 0; k < summary.history.size(); ++k) {
+    const LoopStep& s = summary.history[k];
+    out << k << "," << s.action << ",\"" << s.effect << "\",";
+    std::snprintf(number, sizeof number, "%.10g", s.error);
+    out << number << ",";
+    if (summary.noise_floor.known) {
+      std::snprintf(number, sizeof number, "%.10g,%.10g", summary.noise_floor.floor, TimesFloor(s.error, summary.noise_floor));
+      out << number;
+    } else {
+      out << ",";
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace stagefit::diagnose
