@@ -324,6 +324,44 @@ EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& com
   return result;
 }
 
+EffectsFit FitEffects(const model::ModelSpec& base, const compare::Comparison& comparison,
+                      const std::vector<model::Effect>& effects, const std::vector<std::string>& params,
+                      const EffectFitOptions& effect_options) {
+  // Each effect's search range is taken on the model it is applied to (the base with the effects before it).
+  std::vector<fit::ParameterSpec> effect_specs;
+  std::vector<int> effect_of, effect_index;
+  model::ModelSpec applied = base;
+  for (size_t k = 0; k < effects.size(); ++k) {
+    std::vector<int> index;
+    for (const auto& s : EffectParameterSpecs(applied, effects[k], effect_options.held, &index)) effect_specs.push_back(s);
+    for (int i : index) {
+      effect_index.push_back(i);
+      effect_of.push_back(static_cast<int>(k));
+    }
+    model::ApplyEffect(applied, effects[k]);
+  }
+  std::vector<model::ParameterInfo> model_params = MatchQuiet(base, params);
+  std::vector<fit::ParameterSpec> specs = effect_specs;
+  for (const auto& s : fit::MakeParameterSpecs(base, model_params)) specs.push_back(s);
+  EffectProblem problem(base, comparison, effects, effect_specs, effect_of, effect_index, model_params);
+  fit::FitOptions options;
+  options.max_iterations = effect_options.max_iterations;
+  options.function_tolerance = 1e-8;
+  options.initial_trust_region_radius = effect_options.initial_trust_region_radius;
+  options.projected_line_search = true;
+  options.analyse_optimum = false;
+  EffectsFit result;
+  result.summary =
+      effect_options.probe_basins ? fit::SolveWithProbes(problem, specs, options) : fit::Solve(problem, specs, options);
+  const Eigen::VectorXd p = result.summary.values();
+  result.effects = problem.EffectsAt(p);
+  if (!problem.SpecAt(p, &result.spec)) {
+    result.spec = base;
+    for (const auto& e : effects) model::ApplyEffect(result.spec, e);
+  }
+  return result;
+}
+
 DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfData& measurement,
                          const DiagnoseOptions& options) {
   const double start = Clock();

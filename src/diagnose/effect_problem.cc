@@ -101,26 +101,40 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
 EffectProblem::EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison, model::Effect effect,
                              std::vector<fit::ParameterSpec> effect_specs, std::vector<int> effect_index,
                              std::vector<model::ParameterInfo> model_params)
+    : EffectProblem(base, comparison, std::vector<model::Effect>{std::move(effect)}, effect_specs,
+                    std::vector<int>(effect_specs.size(), 0), std::move(effect_index), std::move(model_params)) {}
+
+EffectProblem::EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison,
+                             std::vector<model::Effect> effects, std::vector<fit::ParameterSpec> effect_specs,
+                             std::vector<int> effect_of, std::vector<int> effect_index,
+                             std::vector<model::ParameterInfo> model_params)
     : base_(base),
       comparison_(&comparison),
-      effect_(std::move(effect)),
+      effects_(std::move(effects)),
       effect_specs_(std::move(effect_specs)),
+      effect_of_(std::move(effect_of)),
       effect_index_(std::move(effect_index)),
       model_params_(std::move(model_params)) {
-  STAGEFIT_ASSERT(effect_specs_.size() == effect_index_.size(), "one definition index per effect parameter");
+  STAGEFIT_ASSERT(effect_specs_.size() == effect_index_.size() && effect_specs_.size() == effect_of_.size(),
+                  "one effect and one definition index per effect parameter");
+  STAGEFIT_ASSERT(!effects_.empty(), "at least one effect");
 }
 
-model::Effect EffectProblem::EffectAt(const Eigen::VectorXd& p) const {
-  model::Effect e = effect_;
-  const model::EffectDefinition& def = model::FindEffectDefinition(e.name);
-  for (size_t i = 0; i < effect_specs_.size(); ++i) e.parameters[def.parameters[effect_index_[i]].name] = p(static_cast<int>(i));
-  return e;
+std::vector<model::Effect> EffectProblem::EffectsAt(const Eigen::VectorXd& p) const {
+  std::vector<model::Effect> out = effects_;
+  for (size_t i = 0; i < effect_specs_.size(); ++i) {
+    model::Effect& e = out[effect_of_[i]];
+    e.parameters[model::FindEffectDefinition(e.name).parameters[effect_index_[i]].name] = p(static_cast<int>(i));
+  }
+  return out;
 }
+
+model::Effect EffectProblem::EffectAt(const Eigen::VectorXd& p) const { return EffectsAt(p).front(); }
 
 bool EffectProblem::SpecAt(const Eigen::VectorXd& p, model::ModelSpec* spec) const {
   *spec = base_;
   try {
-    model::ApplyEffect(*spec, EffectAt(p));
+    for (const model::Effect& e : EffectsAt(p)) model::ApplyEffect(*spec, e);
     const int ne = static_cast<int>(effect_specs_.size());
     for (size_t k = 0; k < model_params_.size(); ++k) model::SetParameter(*spec, model_params_[k], p(ne + static_cast<int>(k)));
   } catch (const InputError&) {

@@ -77,34 +77,36 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     }
     summary.history.push_back({"add " + best.effect.name + "@" + best.effect.location, best.with, with_error});
     // Refit from two starts, the better kept: (a) the candidate's state, the model's parameters as the
-    // diagnosis left them; (b) the model as given with the effects added so far, the new effect's
-    // parameters fitted again together with the model's. The first fit bends the model's parameters to
+    // diagnosis left them; (b) the model as given with every effect added so far and the new one, all
+    // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
     // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
     // in that basin (1.9x the floor), from (b) it reaches the floor.
-    model::ModelSpec from_given = spec;
-    for (const auto& e : added) model::ApplyEffect(from_given, e);
     EffectFitOptions eo;
     eo.max_iterations = options.fit.max_iterations;
     eo.probe_basins = true;
     eo.initial_trust_region_radius = 1.0;
-    std::optional<EffectFit> restart;
+    std::vector<model::Effect> all = added;
+    all.push_back(best.effect);
+    std::optional<EffectsFit> restart;
     double restart_error = std::numeric_limits<double>::infinity();
     try {
-      restart = FitEffect(from_given, comparison, best.effect, options.diagnose.params, eo);
+      restart = FitEffects(spec, comparison, all, options.diagnose.params, eo);
       restart_error = comparison.Error(restart->spec);
     } catch (const std::exception&) {
       restart.reset();
     }
     refit(&with, "refit");
-    model::Effect effect = best.effect;
+    added.push_back(best.effect);
     if (restart && restart_error < summary.history.back().error) {
-      summary.history.back() = {"refit (effect and model from the model as given)", restart->effect.ToString(), restart_error};
+      std::string text;
+      for (const auto& e : restart->effects) text += (text.empty() ? "" : " ") + e.ToString();
+      summary.history.back() = {"refit (effects and model from the model as given)", text, restart_error};
       with = restart->spec;
-      effect = restart->effect;
+      added = restart->effects;
       say("refit from the model as given: error " + std::to_string(restart_error));
     }
-    added.push_back(effect);
-    summary.effects_added.push_back(effect.ToString());
+    summary.effects_added.clear();
+    for (const auto& e : added) summary.effects_added.push_back(e.ToString());
     current = with;
   }
   if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {

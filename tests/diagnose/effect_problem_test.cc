@@ -117,5 +117,65 @@ INSTANTIATE_TEST_SUITE_P(
       return name;
     });
 
+// Several effects in one problem (the loop's joint refit): the spec at p is the base with each effect
+// applied in order; every effect parameter's column, of either effect, agrees with a central difference.
+TEST(EffectProblemSeveral, ColumnsOfEveryEffectMatchDifferences) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions hidden;
+  hidden.num_effects = 0;
+  hidden.num_frequencies = 80;
+  const auto data = synthetic::MakeHiddenEffectCase(nominal, 5, hidden);
+  const auto comparison = compare::Comparison::Create(nominal, data.measurement);
+  const std::vector<model::Effect> effects = {model::ParseEffect("payload@hexapod:mass=3 kg,z=0.1 m", nominal),
+                                              model::ParseEffect("coupled-stiffness@hexapod.Dx-Ry:k=1e5 N/m", nominal)};
+  std::vector<fit::ParameterSpec> specs;
+  std::vector<int> of, index;
+  model::ModelSpec applied = nominal;
+  for (int k = 0; k < 2; ++k) {
+    std::vector<int> idx;
+    for (const auto& s : EffectParameterSpecs(applied, effects[k], {}, &idx)) specs.push_back(s);
+    for (int i : idx) {
+      of.push_back(k);
+      index.push_back(i);
+    }
+    model::ApplyEffect(applied, effects[k]);
+  }
+  const auto params = model::MatchParameters(nominal, {"hexapod.k.Dz"});
+  EffectProblem problem(nominal, comparison, effects, specs, of, index, params);
+  const int ne = static_cast<int>(specs.size());
+  ASSERT_EQ(ne, 5);  // mass, x, y, z; k
+  Eigen::VectorXd p(ne + 1);
+  for (int i = 0; i < ne; ++i) p(i) = specs[i].initial;
+  p(ne) = model::GetParameter(nominal, params[0]);
+  p(3) = 0.12;   // the payload's z
+  p(4) = 2e5;    // the coupling
+  const std::vector<model::Effect> at = problem.EffectsAt(p);
+  ASSERT_EQ(at.size(), 2u);
+  EXPECT_EQ(at[0].parameters.at("z"), 0.12);
+  EXPECT_EQ(at[1].parameters.at("k"), 2e5);
+  model::ModelSpec spec;
+  ASSERT_TRUE(problem.SpecAt(p, &spec));
+  model::ModelSpec expected = nominal;
+  for (const auto& e : at) model::ApplyEffect(expected, e);
+  EXPECT_EQ(comparison.Error(spec), comparison.Error(expected));
+
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  ASSERT_TRUE(problem.Evaluate(p, &r, &J));
+  for (int i = 0; i < ne; ++i) {
+    const auto& s = specs[i];
+    const double h = s.log_scale ? 1e-4 * std::abs(p(i)) : 1e-5 * (s.upper - s.lower);
+    Eigen::VectorXd pp = p, pm = p, rp, rm;
+    pp(i) += h;
+    pm(i) -= h;
+    ASSERT_TRUE(problem.Evaluate(pp, &rp, nullptr));
+    ASSERT_TRUE(problem.Evaluate(pm, &rm, nullptr));
+    const Eigen::VectorXd fd = (rp - rm) / (2 * h);
+    const double rounding = 1e-12 * r.norm() / h;
+    EXPECT_LE((J.col(i) - fd).norm(), 1e-5 * fd.norm() + rounding) << s.name;
+  }
+  EXPECT_GT(J.col(4).norm(), 0.0);  // the second effect's column is not empty
+}
+
 }  // namespace
 }  // namespace stagefit::diagnose

@@ -185,4 +185,16 @@ struct EffectFitOptions {
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
                     const std::vector<std::string>& params, const EffectFitOptions& options = {});
 
+/// Several effects applied to `base` in order, their parameters all fitted together with the model's
+/// (`params`), each effect's parameters within its search range (EffectParameterSpecs() around the
+/// values given). `options.held` applies to every effect.
+struct EffectsFit {
+  std::vector<model::Effect> effects;
+  fit::FitSummary summary;
+  model::ModelSpec spec;
+};
+EffectsFit FitEffects(const model::ModelSpec& base, const compare::Comparison& comparison,
+                      const std::vector<model::Effect>& effects, const std::vector<std::string>& params,
+                      const EffectFitOptions& options = {});
+
 }  // namespace stagefit::diagnose

@@ -52,14 +52,22 @@ class EffectProblem final : public fit::LeastSquaresProblem {
   EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison, model::Effect effect,
                 std::vector<fit::ParameterSpec> effect_specs, std::vector<int> effect_index,
                 std::vector<model::ParameterInfo> model_params);
+  /// Several effects applied to `base` in order, all fitted together with the model's parameters:
+  /// `effect_specs` holds the parameters of every effect in turn, `effect_of[i]` the effect the i-th
+  /// belongs to and `effect_index[i]` its position in that effect's definition.
+  EffectProblem(const model::ModelSpec& base, const compare::Comparison& comparison, std::vector<model::Effect> effects,
+                std::vector<fit::ParameterSpec> effect_specs, std::vector<int> effect_of, std::vector<int> effect_index,
+                std::vector<model::ParameterInfo> model_params);
 
   int num_parameters() const override { return static_cast<int>(effect_specs_.size() + model_params_.size()); }
   int num_residuals() const override { return comparison_->num_residuals(); }
   bool has_jacobian() const override { return true; }
   bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override;
 
-  /// The effect with the effect parameters of `p`.
+  /// The (first) effect with the effect parameters of `p`.
   model::Effect EffectAt(const Eigen::VectorXd& p) const;
+  /// Every effect with the effect parameters of `p`, in order.
+  std::vector<model::Effect> EffectsAt(const Eigen::VectorXd& p) const;
   /// The base model with the effect and the model parameters of `p`; false when they are invalid.
   bool SpecAt(const Eigen::VectorXd& p, model::ModelSpec* spec) const;
   /// The route of each effect parameter's column at the last Evaluate() with a Jacobian.
@@ -70,8 +78,9 @@ class EffectProblem final : public fit::LeastSquaresProblem {
 
   model::ModelSpec base_;
   const compare::Comparison* comparison_;
-  model::Effect effect_;
+  std::vector<model::Effect> effects_;
   std::vector<fit::ParameterSpec> effect_specs_;
+  std::vector<int> effect_of_;
   std::vector<int> effect_index_;
   std::vector<model::ParameterInfo> model_params_;
   // Reused from evaluation to evaluation (one problem per thread): fresh arrays of this size cost more

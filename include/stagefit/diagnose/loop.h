@@ -6,8 +6,11 @@
 // Each round's diagnosis starts from the model the previous round ended with: its baseline is that
 // model refitted, and its best candidate is applied with the candidate's whole fitted state (effect
 // parameters and the model's parameters, diagnose::ApplyCandidate()), so the round reproduces the
-// candidate's error before its own refit. Effects already added keep their fitted parameters: they are
-// edits of the bodies and joints, and the refits free the model's parameters (`params`) only.
+// candidate's error before its own refit. The refit then runs from two starts and keeps the better:
+// that state with the model's parameters (`params`) freed, and the model as given with every effect
+// added so far, all their parameters fitted again together with the model's (diagnose::FitEffects()).
+// Inside a round's diagnosis the effects already added are held (each candidate is fitted with the
+// model's parameters only).
 
 #include <functional>
 #include <limits>
