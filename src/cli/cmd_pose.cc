@@ -33,6 +33,7 @@ void RegisterPoseCommand(CLI::App& app) {
     std::string dy = "0", ry = "0", rz = "0";
     std::vector<std::string> hexapod, err_dy, err_ry, err_rz, err_hexapod;
     std::string report;
+    std::string parasitic_frame = "fixed";
   };
   auto o = std::make_shared<Options>();
   command->add_option("--dy", o->dy, "translation stage setpoint (e.g. \"2.5 mm\"; bare = m)");
@@ -43,6 +44,9 @@ void RegisterPoseCommand(CLI::App& app) {
   command->add_option("--parasitic-ry", o->err_ry, "parasitic motion of the Ry stage")->expected(6);
   command->add_option("--parasitic-rz", o->err_rz, "parasitic motion of the Rz stage")->expected(6);
   command->add_option("--parasitic-hexapod", o->err_hexapod, "parasitic motion of the hexapod")->expected(6);
+  command->add_option("--parasitic-frame", o->parasitic_frame,
+                      "fixed (default, seed eq. 1.12: the parasitic translation in the stage's fixed frame) or moved "
+                      "(in the frame moved by the setpoint)");
   command->add_option("--report", o->report, "write a JSON report to this file");
   command->callback([o] {
     std::vector<kinematics::StageMotion> motions(4);
@@ -54,7 +58,8 @@ void RegisterPoseCommand(CLI::App& app) {
     motions[1].parasitic = ParsePose(o->err_ry, "--parasitic-ry");
     motions[2].parasitic = ParsePose(o->err_rz, "--parasitic-rz");
     motions[3].parasitic = ParsePose(o->err_hexapod, "--parasitic-hexapod");
-    auto poses = kinematics::CalcStackPoses(kinematics::MicroStationStages(), motions);
+    const kinematics::ParasiticFrame frame = kinematics::ParseParasiticFrame(o->parasitic_frame, "--parasitic-frame");
+    auto poses = kinematics::CalcStackPoses(kinematics::MicroStationStages(), motions, frame);
     const auto& X = poses.back();
     Eigen::Matrix4d T = X.GetAsMatrix4();
     std::printf("Sample pose X_W_sample = T_Dy T_Ry T_Rz T_hexapod:\n");
@@ -69,6 +74,7 @@ void RegisterPoseCommand(CLI::App& app) {
       for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
       WriteReport(o->report,
                   {{"command", "pose"},
+                   {"parasitic_frame", o->parasitic_frame},
                    {"transform", rows},
                    {"pose", {{"Dx", pose(0)}, {"Dy", pose(1)}, {"Dz", pose(2)}, {"Rx", pose(3)}, {"Ry", pose(4)}, {"Rz", pose(5)}}}},
                   {});

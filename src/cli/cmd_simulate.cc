@@ -30,6 +30,8 @@ struct SimulateFlags {
   std::string compare;
   std::string ground_psd;
   std::string straightness;
+  std::string spindle_psd;
+  std::vector<std::string> spindle_reference;
   bool no_ground = false, no_stage_error = false;
 };
 
@@ -51,6 +53,13 @@ void AddFlags(CLI::App* command, SimulateFlags& f, bool tomography) {
                     tomography ? "no spindle error motion" : "no translation-stage straightness error");
   if (tomography) {
     command->add_option("--speed", f.speed, "spindle speed (default \"60 rpm\")");
+    command->add_option("--spindle-psd", f.spindle_psd,
+                        "spindle error PSD table (CSV frequency_hz, Dx, Dy, Dz in m^2/Hz, Rx, Ry in rad^2/Hz; default: "
+                        "the target of measurements/disturbance/spindle_target.csv)");
+    command->add_option("--spindle-reference", f.spindle_reference,
+                        "X Y Z: where the spindle error is measured (the analyser's sphere), in W, lengths with units "
+                        "or in m (default: the PoI, 0 0 0); moved to the spindle joint by the rigid lever arm")
+        ->expected(3);
   } else {
     command->add_option("--amplitude", f.amplitude, "triangle setpoint amplitude (default \"4.5 mm\")");
     command->add_option("--period", f.period, "triangle period, one back-and-forth (default \"1 s\")");
@@ -160,7 +169,7 @@ void WriteOutputs(const sim::SimulationSummary& s, const SimulateFlags& f, const
 void Finish(const sim::SimulationSummary& s, const SimulateFlags& f) {
   std::printf("%s", s.BriefReport().c_str());
   std::vector<std::string> inputs;
-  for (const auto& p : {f.common.model_path, f.compare, f.ground_psd, f.straightness}) {
+  for (const auto& p : {f.common.model_path, f.compare, f.ground_psd, f.straightness, f.spindle_psd}) {
     if (!p.empty()) inputs.push_back(p);
   }
   nlohmann::json report = {{"command", "simulate " + s.experiment}, {"model", ModelSource(f.common)}, {"seed", f.seed}};
@@ -204,6 +213,13 @@ void RegisterSimulateCommand(CLI::App& app) {
     o.ground_motion = !tf->no_ground;
     o.spindle_error = !tf->no_stage_error;
     if (!tf->ground_psd.empty()) o.ground_psd = ReadPsdTable(tf->ground_psd);
+    if (!tf->spindle_psd.empty()) o.spindle_error_psd = sim::SpindleErrorPsdFromTable(sd::ReadCsvTable(tf->spindle_psd));
+    if (!tf->spindle_reference.empty()) {
+      for (int k = 0; k < 3; ++k) {
+        o.spindle_error_reference_W(k) =
+            ParseQuantity(tf->spindle_reference[k], dim::kLength, std::string("--spindle-reference ") + "XYZ"[k]);
+      }
+    }
     Finish(sim::RunTomography(LoadModelFromOptions(tf->common), o), *tf);
   });
 

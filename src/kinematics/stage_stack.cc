@@ -4,7 +4,13 @@
 
 namespace stagefit::kinematics {
 
-RigidTransform CalcStageTransform(const Stage& stage, const StageMotion& motion) {
+ParasiticFrame ParseParasiticFrame(const std::string& text, const std::string& context) {
+  if (text == "fixed") return ParasiticFrame::kFixed;
+  if (text == "moved") return ParasiticFrame::kMoved;
+  throw InputError(context + " '" + text + "': expected fixed (seed eq. 1.12) or moved");
+}
+
+RigidTransform CalcStageTransform(const Stage& stage, const StageMotion& motion, ParasiticFrame frame) {
   RigidTransform nominal;
   switch (stage.kind) {
     case StageKind::kTranslation: {
@@ -27,11 +33,14 @@ RigidTransform CalcStageTransform(const Stage& stage, const StageMotion& motion)
       nominal = RigidTransform::FromPose(motion.pose_setpoint);
       break;
   }
-  return nominal * RigidTransform::FromPose(motion.parasitic);
+  const RigidTransform error = RigidTransform::FromPose(motion.parasitic);
+  if (frame == ParasiticFrame::kMoved) return nominal * error;
+  // Eq. 1.12: rotation R_nom R_err, translation p_nom + D_err (D_err in the fixed frame).
+  return RigidTransform(nominal.rotation() * error.rotation(), nominal.translation() + error.translation());
 }
 
 std::vector<RigidTransform> CalcStackPoses(const std::vector<Stage>& stages,
-                                           const std::vector<StageMotion>& motions) {
+                                           const std::vector<StageMotion>& motions, ParasiticFrame frame) {
   if (stages.size() != motions.size()) {
     throw InputError("stage stack has " + std::to_string(stages.size()) + " stages but " +
                      std::to_string(motions.size()) + " motions were given");
@@ -39,7 +48,7 @@ std::vector<RigidTransform> CalcStackPoses(const std::vector<Stage>& stages,
   std::vector<RigidTransform> poses;
   RigidTransform X_W;
   for (size_t i = 0; i < stages.size(); ++i) {
-    X_W = X_W * CalcStageTransform(stages[i], motions[i]);
+    X_W = X_W * CalcStageTransform(stages[i], motions[i], frame);
     poses.push_back(X_W);
   }
   return poses;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -274,6 +275,39 @@ Eigen::Vector4d FitCircle(const Eigen::VectorXd& x, const Eigen::VectorXd& y, co
   return A.colPivHouseholderQr().solve(b);
 }
 
+Eigen::MatrixXd TransferErrorMotion(const Eigen::MatrixXd& motion_P, const Eigen::Vector3d& p_P, const Eigen::Vector3d& p_J) {
+  if (motion_P.cols() != 5 && motion_P.cols() != 6) {
+    throw InputError("error motion: expected 5 or 6 columns (Dx Dy Dz Rx Ry [Rz]), got " + std::to_string(motion_P.cols()));
+  }
+  const Eigen::Vector3d r = p_J - p_P;
+  Eigen::MatrixXd out = motion_P;
+  for (Eigen::Index k = 0; k < motion_P.rows(); ++k) {
+    const Eigen::Vector3d theta(motion_P(k, 3), motion_P(k, 4), motion_P.cols() == 6 ? motion_P(k, 5) : 0.0);
+    out.row(k).head<3>() += theta.cross(r).transpose();
+  }
+  return out;
+}
+
+std::array<disturbance::PsdTable, 5> SpindleErrorPsdFromTable(const disturbance::CsvTable& table) {
+  if (table.column_names.empty() || table.column_names[0] != "frequency_hz") {
+    throw InputError(table.source + ": expected a PSD table whose first column is frequency_hz (Hz), then Dx, Dy, Dz "
+                     "(m^2/Hz) and Rx, Ry (rad^2/Hz)");
+  }
+  std::array<disturbance::PsdTable, 5> psd;
+  const char* names[5] = {"Dx", "Dy", "Dz", "Rx", "Ry"};
+  for (int c = 0; c < 5; ++c) {
+    if (table.FindColumn(names[c]) < 0) {
+      throw InputError(table.source + ": no column '" + names[c] + "' (a spindle error PSD needs Dx, Dy, Dz in m^2/Hz and "
+                       "Rx, Ry in rad^2/Hz)");
+    }
+    psd[c].name = table.source + " column " + names[c];
+    psd[c].frequency_hz = table.values.col(0);
+    psd[c].psd = table.Column(names[c]);
+    disturbance::ValidatePsdTable(psd[c]);
+  }
+  return psd;
+}
+
 SimulationSummary RunTomography(const model::ModelSpec& input_spec, const TomographyOptions& o) {
   const int n = SampleCount(o.duration_s, o.sample_rate_hz);
   if (!std::isfinite(o.speed_rad_s)) throw InputError("simulation option speed is not finite");
@@ -302,11 +336,24 @@ SimulationSummary RunTomography(const model::ModelSpec& input_spec, const Tomogr
   if (o.spindle_error) {
     std::vector<int> which;
     AddJointForceInputs(model, spindle, {Dof::kDx, Dof::kDy, Dof::kDz, Dof::kRx, Dof::kRy}, inputs, which);
-    Eigen::MatrixXd delta0 = Eigen::MatrixXd::Zero(n, 6);
-    for (int c = 0; c < 5; ++c) delta0.col(c) = disturbance::SynthesiseSignal(o.spindle_error_psd[c], synthesis, rng).head(n);
+    if (!o.spindle_error_reference_W.allFinite()) throw InputError("simulation option spindle reference is not finite");
+    // The error as measured at the reference point, moved to the joint's origin by the lever arm, then
+    // expressed in the joint's axes (the joint deformation's coordinates).
+    Eigen::MatrixXd measured = Eigen::MatrixXd::Zero(n, 6);
+    for (int c = 0; c < 5; ++c) measured.col(c) = disturbance::SynthesiseSignal(o.spindle_error_psd[c], synthesis, rng).head(n);
+    const model::JointSpec& joint = spec.joints[spindle];
+    const Eigen::MatrixXd at_joint = TransferErrorMotion(measured, o.spindle_error_reference_W, joint.origin_W);
+    Eigen::MatrixXd delta0(n, 6);
+    delta0.leftCols<3>() = at_joint.leftCols<3>() * joint.R_WJ;   // rows: (R_WJ' d)'
+    delta0.rightCols<3>() = at_joint.rightCols<3>() * joint.R_WJ;
     const Eigen::MatrixXd f = JointForces(model, spindle, delta0, dt, which);
     for (Eigen::Index c = 0; c < f.cols(); ++c) columns.push_back(f.col(c));
-    summary.notes.push_back("spindle error motion imposed as a deformation of joint '" + o.roles.spindle_joint +
+    char where[160];
+    std::snprintf(where, sizeof where, "measured at (%.4g, %.4g, %.4g) m, moved to the joint origin (%.4g, %.4g, %.4g) m",
+                  o.spindle_error_reference_W.x(), o.spindle_error_reference_W.y(), o.spindle_error_reference_W.z(),
+                  joint.origin_W.x(), joint.origin_W.y(), joint.origin_W.z());
+    summary.notes.push_back("spindle error motion " + std::string(where) + " by the rigid lever arm d_J = d_P + theta x "
+                            "(p_J - p_P), imposed as a deformation of joint '" + o.roles.spindle_joint +
                             "' (forces K delta0 + C delta0' inside the joint), in fixed axes");
   }
   const Eigen::MatrixXd u = InputMatrix(model, n, columns, inputs);

@@ -71,6 +71,44 @@ TEST(PoseCommand, PrintsTheComposedPose) {
   EXPECT_EQ(RunStagefit("pose --dy \"2 kg\"").exit_code, 2);
 }
 
+// Seed eq. 1.12: a parasitic x error of the spindle stays along x at Rz = 90 deg (fixed frame, the
+// default); in the moved frame it appears along y. A bad convention name is a usage of bad input.
+TEST(PoseCommand, ParasiticMotionInTheFixedOrTheMovedFrame) {
+  auto fixed = RunStagefit("pose --rz \"90 deg\" --parasitic-rz 1e-6 0 0 0 0 0");
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.output;
+  EXPECT_NE(fixed.output.find("Dx = 1e-06 m, Dy = 0 m"), std::string::npos) << fixed.output;
+  auto moved = RunStagefit("pose --rz \"90 deg\" --parasitic-rz 1e-6 0 0 0 0 0 --parasitic-frame moved");
+  ASSERT_EQ(moved.exit_code, 0) << moved.output;
+  EXPECT_NE(moved.output.find("Dy = 1e-06 m"), std::string::npos) << moved.output;
+  auto bad = RunStagefit("pose --parasitic-frame sideways");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--parasitic-frame 'sideways'"), std::string::npos) << bad.output;
+}
+
+// The spindle error PSD and the point where it was measured, from the command line; bad values exit 2
+// naming the option or the file and its missing column.
+TEST(SimulateCommand, SpindleErrorPsdAndReference) {
+  auto dir = TempDir("simulate-spindle");
+  const std::string psd = std::string(STAGEFIT_SOURCE_DIR) + "/measurements/disturbance/spindle_target.csv";
+  auto r = RunStagefit("simulate tomography --duration 1 --rate 1000 --spindle-psd " + psd +
+                       " --spindle-reference 0 0 \"-400 mm\" --out-dir " + dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("radial"), std::string::npos) << r.output;
+  std::ofstream(dir / "bad_psd.csv") << "frequency_hz,Dx,Dy,Dz,Rx\n0.1,1e-16,1e-16,1e-16,1e-14\n100,1e-19,1e-19,1e-19,1e-17\n";
+  auto missing = RunStagefit("simulate tomography --duration 1 --rate 1000 --spindle-psd " + (dir / "bad_psd.csv").string() +
+                             " --out-dir " + dir.string());
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(missing.output.find("bad_psd.csv: no column 'Ry'"), std::string::npos) << missing.output;
+  auto unit = RunStagefit("simulate tomography --duration 1 --rate 1000 --spindle-reference 0 0 \"1 kg\" --out-dir " +
+                          dir.string());
+  EXPECT_EQ(unit.exit_code, 2) << unit.output;
+  EXPECT_NE(unit.output.find("--spindle-reference Z"), std::string::npos) << unit.output;
+  auto absent = RunStagefit("simulate tomography --duration 1 --rate 1000 --spindle-psd " + (dir / "none.csv").string() +
+                            " --out-dir " + dir.string());
+  EXPECT_EQ(absent.exit_code, 2) << absent.output;
+  EXPECT_NE(absent.output.find("none.csv"), std::string::npos) << absent.output;
+}
+
 TEST(ExportCommand, WritesNamedCsvMatrices) {
   auto dir = TempDir("export");
   auto r = RunStagefit("export --out " + (dir / "ss.csv").string());

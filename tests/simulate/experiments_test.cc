@@ -107,6 +107,90 @@ TEST(RunTomography, RefusesANonAxisymmetricSpinningSubtree) {
   EXPECT_THROW(RunTomography(spec, ShortTomography()), InputError);
 }
 
+TEST(TransferErrorMotion, LeverArmOfARigidBody) {
+  // Closed form: a tilt theta about the reference point P moves a point J at r = p_J - p_P by theta x r;
+  // a translation moves every point alike; the rotation is the same everywhere.
+  const Eigen::Vector3d p_P(0, 0, 0), p_J(0, 0, -0.4);
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(3, 5);
+  m.row(0) << 0, 0, 0, 0, 1e-6;  // Ry = 1 urad at P
+  m.row(1) << 0, 0, 0, 2e-6, 0;  // Rx = 2 urad
+  m.row(2) << 1e-8, -2e-8, 3e-8, 0, 0;
+  const Eigen::MatrixXd j = TransferErrorMotion(m, p_P, p_J);
+  // Ry x (0, 0, -0.4) = (1e-6 * -0.4 along x?): (0, b, 0) x (0, 0, z) = (b z, 0, 0) = (-4e-7, 0, 0).
+  EXPECT_NEAR(j(0, 0), -0.4e-6, 1e-20);
+  EXPECT_NEAR(j(0, 1), 0.0, 1e-20);
+  // (a, 0, 0) x (0, 0, z) = (0, -a z, 0) = (0, 8e-7, 0).
+  EXPECT_NEAR(j(1, 1), 0.8e-6, 1e-20);
+  EXPECT_NEAR(j(1, 0), 0.0, 1e-20);
+  EXPECT_TRUE(j.row(2).isApprox(m.row(2)));
+  EXPECT_TRUE(j.rightCols(2).isApprox(m.rightCols(2)));
+  // Round trip J -> P gives back the measured motion.
+  EXPECT_LT((TransferErrorMotion(j, p_J, p_P) - m).norm(), 1e-20);
+  // Six columns: Rz about P moves an off-axis point J sideways.
+  Eigen::MatrixXd six = Eigen::MatrixXd::Zero(1, 6);
+  six(0, 5) = 1e-6;
+  EXPECT_NEAR(TransferErrorMotion(six, p_P, Eigen::Vector3d(0.1, 0, 0))(0, 1), 1e-7, 1e-20);
+  EXPECT_THROW(TransferErrorMotion(Eigen::MatrixXd::Zero(2, 4), p_P, p_J), InputError);
+}
+
+// Spindle error only, spindle at rest (the PoI does not turn): below the spindle joint's resonances the
+// joint deforms by the error imposed on it, so the PoI moves by the error as measured at the
+// reference point. With the reference at the PoI (the default) the PoI's x and y follow the measured Dx
+// and Dy; with the error imposed unchanged at the joint 0.4 m below, the tilts add 0.4 m x Ry.
+TEST(RunTomography, TheSpindleErrorAppearsAtThePointWhereItWasMeasured) {
+  TomographyOptions o = ShortTomography();
+  o.speed_rad_s = 0.0;
+  o.ground_motion = false;
+  // Errors from 0.5 to 4 Hz only: far below the stack's first modes (about 20 Hz), where the response
+  // is quasi-static; the default 1/f PSD reaches 100 Hz, where resonances amplify it.
+  for (int c = 0; c < 5; ++c) {
+    o.spindle_error_psd[c].frequency_hz = Eigen::VectorXd::LinSpaced(2, 0.5, 4.0);
+    o.spindle_error_psd[c].psd = Eigen::VectorXd::Constant(2, c < 3 ? 1e-16 : 1e-14);
+  }
+  const model::ModelSpec spec = model::DefaultModelSpec();
+  const double z_joint = spec.joints[model::FindJoint(spec, "rz")].origin_W.z();
+  std::mt19937_64 rng(o.seed);
+  Eigen::MatrixXd measured(static_cast<Eigen::Index>(std::round(o.duration_s * o.sample_rate_hz)), 5);
+  for (int c = 0; c < 5; ++c) {
+    measured.col(c) = disturbance::SynthesiseSignal(o.spindle_error_psd[c], {o.duration_s, o.sample_rate_hz}, rng)
+                          .head(measured.rows());
+  }
+  auto centred = [](const Eigen::VectorXd& v) { return Eigen::VectorXd(v.array() - v.mean()); };
+  auto rms = [](const Eigen::VectorXd& v) { return std::sqrt(v.squaredNorm() / v.size()); };
+
+  const SimulationSummary at_poi = RunTomography(spec, o);
+  for (int c = 0; c < 2; ++c) {
+    const Eigen::VectorXd expected = centred(measured.col(c));
+    const Eigen::VectorXd got = centred(at_poi.poi_pose.col(c));
+    EXPECT_LT(rms(got - expected), 0.05 * rms(expected)) << "axis " << c << ": rms " << rms(got) << " against " << rms(expected);
+  }
+  o.spindle_error_reference_W = Eigen::Vector3d(0, 0, z_joint);  // as if measured at the joint
+  const SimulationSummary at_joint = RunTomography(spec, o);
+  // x gains theta_y x (p_PoI - p_J): Ry * (0 - z_joint) along x.
+  const Eigen::VectorXd expected_x = centred(measured.col(0) - z_joint * measured.col(4));
+  EXPECT_LT(rms(centred(at_joint.poi_pose.col(0)) - expected_x), 0.05 * rms(expected_x));
+  EXPECT_GT(rms(expected_x), 2.0 * rms(centred(measured.col(0))));  // the lever arm dominates
+}
+
+// The default spindle PSD is the shipped target table: read from the file it gives the same run.
+TEST(SpindleErrorPsdFromTable, TheShippedTargetIsTheDefault) {
+  const auto table = disturbance::ReadCsvTable(std::string(STAGEFIT_SOURCE_DIR) + "/measurements/disturbance/spindle_target.csv");
+  const auto psd = SpindleErrorPsdFromTable(table);
+  const auto defaults = DefaultSpindleErrorPsd();
+  for (int c = 0; c < 5; ++c) {
+    EXPECT_TRUE(psd[c].frequency_hz.isApprox(defaults[c].frequency_hz)) << c;
+    EXPECT_TRUE(psd[c].psd.isApprox(defaults[c].psd)) << c;
+  }
+  disturbance::CsvTable missing = table;
+  missing.column_names[4] = "Tx";
+  try {
+    SpindleErrorPsdFromTable(missing);
+    ADD_FAILURE() << "a table without Rx was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no column 'Rx'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RunRaster, SlowStraightnessPassesToTheSample) {
   // A straightness profile 100 nm cos(2 pi y / 9 mm) seen at 18 mm/s is a 2 Hz signal, far below the
   // stack's first resonance: the sample follows it. The dynamic amplification (f/f1)^2 and the ZOH

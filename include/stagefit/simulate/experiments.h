@@ -83,6 +83,19 @@ struct SimulationSummary {
   std::string BriefReport() const;
 };
 
+/// Rigid-body error motion measured at a reference point, moved to another point of the same body
+/// (docs/simulation.md, "Spindle errors: where they are measured"). `motion_P` is n x 6 or n x 5:
+/// translations d_P (m) and small rotations theta (rad) [Dx Dy Dz Rx Ry (Rz)] at p_P, W axes. The
+/// rotation is the same everywhere on the body; the translation at p_J is the lever arm
+///     d_J = d_P + theta x (p_J - p_P).
+/// Returns the same columns at p_J. Throws InputError unless 5 or 6 columns.
+Eigen::MatrixXd TransferErrorMotion(const Eigen::MatrixXd& motion_P, const Eigen::Vector3d& p_P, const Eigen::Vector3d& p_J);
+
+/// Spindle error PSDs from a PSD table (frequency_hz and columns Dx, Dy, Dz in m^2/Hz, Rx, Ry in
+/// rad^2/Hz; every column required, others ignored). Throws InputError naming the table's source and
+/// the missing column or the bad value.
+std::array<disturbance::PsdTable, 5> SpindleErrorPsdFromTable(const disturbance::CsvTable& table);
+
 struct TomographyOptions {
   double duration_s = 10.0;               ///< > 0, s
   double sample_rate_hz = 10000.0;        ///< > 0, Hz
@@ -93,6 +106,10 @@ struct TomographyOptions {
   bool spindle_error = true;
   disturbance::PsdTable ground_psd = QuietHallGroundPsd();
   std::array<disturbance::PsdTable, 5> spindle_error_psd = DefaultSpindleErrorPsd();
+  /// Where the spindle error motion is measured (a spindle analyser's sphere), m in W; default the PoI
+  /// (the W origin, on the rotation axis). The error is moved from there to the spindle joint's origin by
+  /// the rigid lever arm (TransferErrorMotion) before it is imposed as the joint's deformation.
+  Eigen::Vector3d spindle_error_reference_W = Eigen::Vector3d::Zero();
   StackRoles roles;
   disturbance::WelchOptions welch;        ///< for the error spectra
 };
