@@ -21,7 +21,7 @@ namespace {
 struct CompareFlags {
   CommonOptions common;
   std::string measurement;
-  std::string space = "compliance";
+  std::string space;
   std::string fmin;
   std::string fmax;
   std::string out_dir;
@@ -101,7 +101,7 @@ void RunCompare(const CompareFlags& f) {
   if (!f.common.report_path.empty()) CheckNotAnInput(f.common.report_path, {f.measurement, f.common.model_path});
 
   compare::CompareOptions options;
-  options.comparison.space = compare::ParseComparisonSpace(f.space, "--space");
+
   if (!f.fmin.empty()) options.comparison.fmin_hz = ParseQuantity(f.fmin, dim::kFrequency, "--fmin");
   if (!f.fmax.empty()) options.comparison.fmax_hz = ParseQuantity(f.fmax, dim::kFrequency, "--fmax");
   options.comparison.significance_threshold = f.significance;
@@ -111,6 +111,7 @@ void RunCompare(const CompareFlags& f) {
 
   const model::ModelSpec spec = LoadModelFromOptions(f.common);
   const measurement::FrfData data = measurement::ReadMeasurement(f.measurement);
+  options.comparison.space = ResolveComparisonSpace(f.space, data);
   const compare::CompareSummary summary = compare::CompareModel(spec, data, options);
 
   std::printf("Model: %s%s\nMeasurement: %s (%s, %d outputs x %d inputs)\n", spec.name.c_str(),
@@ -152,10 +153,8 @@ void RegisterCompareCommand(CLI::App& app) {
   AddCommonOptions(*command, flags->common);
   AddWithOption(*command, flags->common);
   command->add_option("--measurement", flags->measurement, "measurement file (.mat, .csv, .uff)")->required();
-  command->add_option("--space", flags->space,
-                      "compliance (default: the 6x6 compliance at {X}, measurement projected with J_a, J_F) "
-                      "or raw (the raw channels)")
-      ->check(CLI::IsMember({"compliance", "raw"}));
+  command->add_option("--space", flags->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
+      ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--fmin", flags->fmin, "lower end of the comparison band (e.g. \"10 Hz\"; default: the data's)");
   command->add_option("--fmax", flags->fmax, "upper end of the comparison band (default: the data's)");
   command->add_option("--out-dir", flags->out_dir, "write CSV tables for plotting (scripts/plot_compare.sh) here");

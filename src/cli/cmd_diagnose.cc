@@ -22,7 +22,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   struct Options {
     CommonOptions common;
     std::string measurement;
-    std::string space = "compliance";
+    std::string space;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -32,8 +32,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   AddCommonOptions(*command, o->common);
   AddWithOption(*command, o->common);
   command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
-  command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
-      ->check(CLI::IsMember({"compliance", "raw"}));
+  command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
+      ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted with every candidate (comma-separated patterns)")
       ->capture_default_str();
   command->add_option("--effects", o->effects, "only these catalogue effects (comma-separated); default all");
@@ -47,7 +47,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     model::ModelSpec spec = LoadModelFromOptions(o->common);
     measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
     diagnose::DiagnoseOptions options;
-    options.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+    options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;
     if (o->fmax > 0) options.comparison.fmax_hz = o->fmax;
     auto split = [](const std::string& text) {

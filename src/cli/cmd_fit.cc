@@ -105,6 +105,7 @@ void RegisterFitCommand(CLI::App& app) {
     int starts = 1, max_iterations = 100, probe_rounds = 4;
     std::uint64_t seed = 1;
     double fmin_hz = 0.0, fmax_hz = 0.0;
+    bool direct = false;
   };
   auto o = std::make_shared<Options>();
   AddCommonOptions(*command, o->common);
@@ -130,10 +131,13 @@ void RegisterFitCommand(CLI::App& app) {
                                            "after the fit, rounds of basin probes: each stiffness x 1/8 .. 8, "
                                            "restart from the best probe that lowers the error (default 4; 0: none)")
                            ->check(CLI::NonNegativeNumber);
-  auto* space_option = command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
-                           ->check(CLI::IsMember({"compliance", "raw"}));
+  auto* space_option = command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
+                           ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   auto* fmin_option = command->add_option("--fmin", o->fmin_hz, "lower end of the comparison band, Hz");
   auto* fmax_option = command->add_option("--fmax", o->fmax_hz, "upper end of the comparison band, Hz");
+  command->add_flag("--direct", o->direct,
+                    "fit on the whole band at once only (default: also a continuation in band, 8x the lowest "
+                    "frequency then x2.5 per stage, and keep the better; docs/fitting.md)");
   command->add_option("--out", o->out, "write the tuned model file (TOML) here");
   command->callback([=] {
     fit::FitRecipe recipe;
@@ -152,7 +156,10 @@ void RegisterFitCommand(CLI::App& app) {
     if (seed_option->count() > 0) recipe.options.seed = o->seed;
     if (iterations_option->count() > 0) recipe.options.max_iterations = o->max_iterations;
     if (probe_option->count() > 0) recipe.options.max_probe_rounds = o->probe_rounds;
-    if (space_option->count() > 0) recipe.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+    if (space_option->count() > 0) {
+      recipe.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+      recipe.space_given = true;
+    }
     if (fmin_option->count() > 0) recipe.comparison.fmin_hz = o->fmin_hz;
     if (fmax_option->count() > 0) recipe.comparison.fmax_hz = o->fmax_hz;
     if (recipe.measurement.empty()) {
@@ -169,6 +176,7 @@ void RegisterFitCommand(CLI::App& app) {
 
     model::ModelSpec spec = LoadModelFromOptions(model_options);
     const measurement::FrfData data = measurement::ReadMeasurement(recipe.measurement);
+    if (!recipe.space_given) recipe.comparison.space = ResolveComparisonSpace("", data);
     const compare::Comparison comparison = compare::Comparison::Create(spec, data, recipe.comparison);
     const std::vector<model::ParameterInfo> params = model::MatchParameters(spec, recipe.params);
 
@@ -183,7 +191,10 @@ void RegisterFitCommand(CLI::App& app) {
         std::fflush(stderr);
       };
     }
-    const fit::FitSummary summary = fit::FitModel(spec, comparison, params, recipe.options, recipe.bounds);
+    const fit::FitSummary summary =
+        o->direct ? fit::FitModel(spec, comparison, params, recipe.options, recipe.bounds)
+                  : fit::FitModelWithBandContinuation(spec, data, recipe.comparison, comparison, params, recipe.options,
+                                                      recipe.bounds);
     if (progress_shown) std::fprintf(stderr, "\n");
 
     std::printf("%s\n%s", summary.BriefReport().c_str(), summary.FullReport().c_str());

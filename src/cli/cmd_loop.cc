@@ -27,7 +27,7 @@ void RegisterLoopCommand(CLI::App& app) {
   struct Options {
     CommonOptions common;
     std::string measurement, out, out_dir;
-    std::string space = "compliance";
+    std::string space;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -40,8 +40,8 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--out", o->out, "write the final model file (TOML) here")->required();
   command->add_option("--out-dir", o->out_dir,
                       "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
-  command->add_option("--space", o->space, "comparison space: compliance (default) or raw")
-      ->check(CLI::IsMember({"compliance", "raw"}));
+  command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
+      ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted in every step (comma-separated patterns)")
       ->capture_default_str();
   command->add_option("--effects", o->effects, "only these catalogue effects (comma-separated); default all");
@@ -61,7 +61,7 @@ void RegisterLoopCommand(CLI::App& app) {
     const model::ModelSpec spec = LoadModelFromOptions(o->common);
     const measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
     diagnose::LoopOptions options;
-    options.diagnose.comparison.space = compare::ParseComparisonSpace(o->space, "--space");
+    options.diagnose.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;
     if (o->fmax > 0) options.diagnose.comparison.fmax_hz = o->fmax;
     auto split = [](const std::string& text) {
@@ -79,7 +79,8 @@ void RegisterLoopCommand(CLI::App& app) {
     if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "loop: " << line << std::endl; };
 
     const diagnose::LoopSummary summary = diagnose::RunLoop(spec, data, options);
-    std::printf("Error history (%s space, %d rounds at most):\n%s", o->space.c_str(), o->max_rounds,
+    std::printf("Error history (%s space, %d rounds at most):\n%s",
+                compare::ToString(options.diagnose.comparison.space).c_str(), o->max_rounds,
                 summary.HistoryTable().c_str());
     if (!summary.last_verdict.empty()) std::printf("\nLast diagnosis: %s\n", summary.last_verdict.c_str());
     std::printf("(%.1f s)\n", summary.time_s);

@@ -28,6 +28,7 @@ void RegisterSynthesizeCommand(CLI::App& app) {
     int hidden_effects = -1;
     double scatter = 0.15;
     std::string raw;
+    std::string layout = "top-plate";
   };
   auto o = std::make_shared<Options>();
   AddCommonOptions(*command, o->common);
@@ -44,6 +45,10 @@ void RegisterSynthesizeCommand(CLI::App& app) {
   command->add_option("--raw", o->raw,
                       "also write raw hammer time data (force and accelerometer records, 3 hits per impact) of the "
                       "same truth to this .mat file (layout: measurements/README.md)");
+  command->add_option("--layout", o->layout,
+                      "top-plate (default: the 12x10 compliance test of the top plate) or whole-stack (three triaxial "
+                      "accelerometers on every body, five hammer impacts on the translation stage, seed Figure 2.3)")
+      ->check(CLI::IsMember({"top-plate", "whole-stack"}));
   command->add_option("--scatter", o->scatter, "log-normal sigma of the stiffness scatter with --hidden-effects")->capture_default_str();
   command->callback([o] {
     if (o->noise < 0 || o->noise > 1) throw UsageError("--noise must be in [0, 1]");
@@ -52,7 +57,8 @@ void RegisterSynthesizeCommand(CLI::App& app) {
     CheckNotAnInput(o->out, {o->common.model_path});
     if (!o->raw.empty()) CheckNotAnInput(o->raw, {o->common.model_path});
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {o->common.model_path});
-    nlohmann::json report = {{"command", "synthesize"}, {"noise", o->noise}, {"seed", o->seed}};
+    const bool whole_stack = o->layout == "whole-stack";
+    nlohmann::json report = {{"command", "synthesize"}, {"noise", o->noise}, {"seed", o->seed}, {"layout", o->layout}};
     measurement::FrfData data;
     if (o->hidden_effects >= 0) {
       synthetic::HiddenEffectOptions options;
@@ -62,6 +68,7 @@ void RegisterSynthesizeCommand(CLI::App& app) {
       options.fmin_hz = o->fmin;
       options.fmax_hz = o->fmax;
       options.num_frequencies = o->points;
+      if (whole_stack) options.layout = synthetic::TestLayout::kWholeStack;
       auto c = synthetic::MakeHiddenEffectCase(spec, o->seed, options);
       data = c.measurement;
       nlohmann::json effects = nlohmann::json::array();
@@ -71,6 +78,11 @@ void RegisterSynthesizeCommand(CLI::App& app) {
       }
       report["hidden_effects"] = effects;
       report["truth_model"] = model::WriteModelToml(c.truth);
+    } else if (whole_stack) {
+      data = synthetic::CalcBruteForceFrf(spec, synthetic::WholeStackSensors(spec), synthetic::WholeStackImpacts(spec),
+                                          synthetic::LogFrequencies(o->fmin, o->fmax, o->points),
+                                          measurement::FrfQuantity::kAccelerance);
+      synthetic::AddNoise(data, {o->noise, o->noise, o->seed});
     } else {
       const int frame = model::FindFrame(spec, spec.compliance_frame);
       if (frame < 0) throw InputError("the model has no compliance frame for the test geometry");
@@ -85,6 +97,7 @@ void RegisterSynthesizeCommand(CLI::App& app) {
     measurement::WriteMeasurement(o->out, data);
     if (!o->raw.empty()) {
       if (o->hidden_effects >= 0) throw UsageError("--raw is made from the model as given; do not combine it with --hidden-effects");
+      if (whole_stack) throw UsageError("--raw is made for the top-plate layout; do not combine it with --layout whole-stack");
       CheckNotAnInput(o->raw, {o->common.model_path, o->out});
       const auto& X = spec.frames[model::FindFrame(spec, spec.compliance_frame)];
       synthetic::RawHammerOptions raw_options;

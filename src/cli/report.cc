@@ -1,5 +1,7 @@
 #include "report.h"
 
+#include <cstdio>
+
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
 #include "stagefit/model/effects.h"
@@ -16,6 +18,13 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options) {
 
 std::string ModelSource(const CommonOptions& options) {
   return options.model_path.empty() ? "<embedded micro-station>" : options.model_path;
+}
+
+compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const measurement::FrfData& data) {
+  if (!value.empty()) return compare::ParseComparisonSpace(value, "--space");
+  const compare::DefaultSpace choice = compare::ChooseDefaultSpace(data);
+  std::printf("comparison space: %s (%s; --space to choose)\n", compare::ToString(choice.space).c_str(), choice.reason.c_str());
+  return choice.space;
 }
 
 nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor) {

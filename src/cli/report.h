@@ -18,6 +18,10 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
 /// "<embedded micro-station>" or the --model path, for messages.
 std::string ModelSource(const CommonOptions& options);
 
+/// The comparison space of `--space VALUE`, or when VALUE is empty the one the measurement's geometry
+/// calls for (compare::ChooseDefaultSpace), printed with its reason.
+compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const measurement::FrfData& data);
+
 /// {"floor", "sd", "error_over_floor"} of compare::Comparison::CalcNoiseFloor() for `error`; null when
 /// the measurement has no coherence (the floor is unknown).
 nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor);

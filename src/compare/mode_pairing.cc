@@ -44,12 +44,18 @@ double Crossing(const Eigen::VectorXd& f, const Eigen::VectorXd& s, int a, int b
 
 std::vector<Eigen::MatrixXcd> Scaled(const Comparison& comparison, const std::vector<Eigen::MatrixXcd>& frf,
                                      double length_m) {
-  if (comparison.space() != ComparisonSpace::kCompliance) return frf;
-  Eigen::VectorXd s = Eigen::VectorXd::Ones(6);
-  s.tail<3>().setConstant(length_m);
+  if (comparison.space() == ComparisonSpace::kRaw) return frf;
+  // Rotations (rows, and in compliance space columns: torques) with a lever arm, so that they weigh
+  // like translations in the shapes. Bodies space: outputs <body>.Dx..Rz, inputs raw forces.
+  Eigen::VectorXd s = Eigen::VectorXd::Ones(comparison.num_outputs());
+  for (int o = 0; o < s.size(); ++o) {
+    if (o % 6 >= 3) s(o) = length_m;
+  }
+  Eigen::VectorXd t = Eigen::VectorXd::Ones(comparison.num_inputs());
+  if (comparison.space() == ComparisonSpace::kCompliance) t.tail<3>().setConstant(length_m);
   std::vector<Eigen::MatrixXcd> out;
   out.reserve(frf.size());
-  for (const auto& H : frf) out.push_back(s.asDiagonal() * H * s.asDiagonal());
+  for (const auto& H : frf) out.push_back(s.asDiagonal() * H * t.asDiagonal());
   return out;
 }
 

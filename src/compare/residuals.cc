@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "stagefit/common/dof.h"
@@ -88,11 +89,31 @@ double SnrFromCoherence(double gamma2) {
 ComparisonSpace ParseComparisonSpace(const std::string& text, const std::string& context) {
   if (text == "compliance") return ComparisonSpace::kCompliance;
   if (text == "raw") return ComparisonSpace::kRaw;
-  throw InputError(context + ": '" + text + "', expected 'compliance' or 'raw'");
+  if (text == "bodies") return ComparisonSpace::kBodies;
+  throw InputError(context + ": '" + text + "', expected 'compliance', 'bodies' or 'raw'");
 }
 
 std::string ToString(ComparisonSpace space) {
-  return space == ComparisonSpace::kCompliance ? "compliance" : "raw";
+  switch (space) {
+    case ComparisonSpace::kCompliance: return "compliance";
+    case ComparisonSpace::kBodies: return "bodies";
+    case ComparisonSpace::kRaw: break;
+  }
+  return "raw";
+}
+
+DefaultSpace ChooseDefaultSpace(const measurement::FrfData& measurement) {
+  std::vector<std::string> bodies;
+  for (const auto& ch : measurement.outputs) {
+    if (!ch.has_geometry()) return {ComparisonSpace::kCompliance, "the channels carry no geometry"};
+    if (std::find(bodies.begin(), bodies.end(), ch.body) == bodies.end()) bodies.push_back(ch.body);
+  }
+  if (bodies.size() <= 1) {
+    return {ComparisonSpace::kCompliance, bodies.empty() ? "no sensors" : "the sensors are on one body ('" + bodies[0] + "')"};
+  }
+  std::string list;
+  for (const auto& b : bodies) list += (list.empty() ? "" : ", ") + b;
+  return {ComparisonSpace::kBodies, "the sensors are on " + std::to_string(bodies.size()) + " bodies (" + list + ")"};
 }
 
 std::string Comparison::ElementName(ElementIndex index) const {
@@ -256,6 +277,77 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       out.dof = static_cast<Dof>(k);
       c.model_outputs_.push_back(out);
     }
+  } else if (options.space == ComparisonSpace::kBodies) {
+    // Per body (docs/error-metric.md §1): each sensor body's channels projected to the 6 DoF of that
+    // body's centre of mass, the impacts kept raw. The model side: the motion of each body's centre of
+    // mass under forces at the impacts.
+    if (!HasAllGeometry(measurement)) {
+      throw InputError(where + ": sensor_body/impact_body: the bodies comparison needs the geometry (body, "
+                       "position, direction) of every channel");
+    }
+    std::map<std::string, Eigen::Vector3d> p_WBcm;
+    for (const auto& b : spec.bodies) p_WBcm[b.name] = b.com_W;
+    for (const auto& ch : measurement.outputs) {
+      if (!p_WBcm.count(ch.body)) {
+        throw InputError(where + ": sensor '" + ch.name + "' is on body '" + ch.body + "', which the model '" + spec.name +
+                         "' does not have");
+      }
+    }
+    const FrfData projection = measurement::ProjectPerBody(measurement, p_WBcm, measurement::InputProjection::kRaw);
+    // The left factor P (block per body): the projection of a unit raw row, for the noise propagation.
+    Eigen::MatrixXd P = Eigen::MatrixXd::Zero(projection.num_outputs(), measurement.num_outputs());
+    {
+      FrfData unit = measurement;
+      unit.frequency_hz = Eigen::VectorXd::Ones(1);
+      unit.frf.assign(1, Eigen::MatrixXcd::Identity(measurement.num_outputs(), measurement.num_outputs()));
+      unit.inputs.assign(measurement.num_outputs(), measurement.inputs.front());
+      unit.coherence.clear();
+      P = measurement::ProjectPerBody(unit, p_WBcm, measurement::InputProjection::kRaw).frf[0].real();
+    }
+    for (int k = 0; k < nf; ++k) c.measured_[k] = projection.frf[rows[k]];
+    for (const auto& ch : projection.outputs) {
+      c.output_names_.push_back(ch.name);
+      model::OutputSpec out;
+      out.kind = model::OutputSpec::Kind::kFrameMotion;
+      out.name = ch.name;
+      out.body = ch.body;
+      out.position_W = p_WBcm.at(ch.body);
+      out.dof = static_cast<Dof>(static_cast<int>(c.output_names_.size() - 1) % 6);
+      c.model_outputs_.push_back(out);
+    }
+    for (const auto& ch : measurement.inputs) {
+      c.input_names_.push_back(ch.name);
+      c.model_inputs_.push_back(model::ForceInput(ch.name, ch.body, ch.position_W, ch.direction_W));
+    }
+    for (int k = 0; k < nf; ++k) {
+      const int no = projection.num_outputs(), ni = measurement.num_inputs();
+      Eigen::MatrixXd w = Eigen::MatrixXd::Ones(no, ni);
+      Eigen::MatrixXd snr_k = Eigen::MatrixXd::Constant(no, ni, std::numeric_limits<double>::infinity());
+      if (use_coherence) {
+        const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
+        Eigen::MatrixXd var_L(H_L.rows(), H_L.cols()), var_L_floor(H_L.rows(), H_L.cols());
+        for (int o = 0; o < var_L.rows(); ++o) {
+          for (int i = 0; i < var_L.cols(); ++i) {
+            const double snr = raw_snr(k, o, i);
+            var_L(o, i) = snr == 0.0 ? std::numeric_limits<double>::infinity() : std::norm(H_L(o, i)) / (snr * snr);
+            var_L_floor(o, i) = std::isfinite(snr) ? std::norm(H_L(o, i)) / (1.0 + snr * snr) : 0.0;
+          }
+        }
+        const Eigen::MatrixXd var_X = P.cwiseAbs2() * var_L, var_X_floor = P.cwiseAbs2() * var_L_floor;
+        for (int a = 0; a < no; ++a) {
+          for (int b = 0; b < ni; ++b) {
+            const double sigma = std::sqrt(var_X(a, b)), sigma_floor = std::sqrt(var_X_floor(a, b));
+            const double magnitude = std::abs(c.measured_[k](a, b));
+            w(a, b) = !std::isfinite(sigma) ? 0.0 : sigma == 0.0 ? cap : std::min(magnitude / sigma, cap);
+            snr_k(a, b) = !std::isfinite(sigma) ? 0.0
+                          : sigma_floor == 0.0  ? std::numeric_limits<double>::infinity()
+                                                : magnitude / sigma_floor;
+          }
+        }
+      }
+      c.weights_[k] = w;
+      c.snr_[k] = snr_k;
+    }
   } else {
     if (!HasAllGeometry(measurement)) {
       throw InputError(where + ": sensor_body/impact_body: the raw comparison needs the geometry (body, "
@@ -307,6 +399,13 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       }
     }
   } else {
+    // Raw and bodies spaces: against the strongest element of the row and of the column. In the bodies
+    // space a column holds translations (m) and rotations (rad): rotations count with a 0.1 m lever arm.
+    if (c.space_ == ComparisonSpace::kBodies) {
+      for (int o = 0; o < no; ++o) {
+        if (o % 6 >= 3) mean_log.row(o).array() += std::log(0.1);
+      }
+    }
     const Eigen::VectorXd row_max = mean_log.rowwise().maxCoeff();
     const Eigen::RowVectorXd col_max = mean_log.colwise().maxCoeff();
     for (int o = 0; o < no; ++o) {

@@ -140,11 +140,18 @@ constexpr double kPolishTrustRegionRadius = 1.0;
 
 /// The rigid-body consistency of the measurement's raw channels (summary fields), when it has them.
 void AddRigidConsistency(const measurement::FrfData& data, const compare::Comparison& comparison,
-                         DiagnoseSummary* summary) {
-  if (comparison.CorrectableChannels().empty()) return;
+                         const model::ModelSpec& spec, DiagnoseSummary* summary) {
   measurement::RigidConsistency rc;
   try {
-    rc = measurement::CalcRigidConsistency(data, comparison.frame_origin_W());
+    if (comparison.space() == compare::ComparisonSpace::kBodies) {
+      // Each sensor against the rigid motion of its own body.
+      std::map<std::string, Eigen::Vector3d> p_WBcm;
+      for (const auto& b : spec.bodies) p_WBcm[b.name] = b.com_W;
+      rc = measurement::CalcRigidConsistencyPerBody(data, p_WBcm);
+    } else {
+      if (comparison.CorrectableChannels().empty()) return;
+      rc = measurement::CalcRigidConsistency(data, comparison.frame_origin_W());
+    }
   } catch (const InputError&) {
     return;  // sensors on several bodies or too few channels: no single rigid body to check against
   }
@@ -401,7 +408,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
 
   // 2. Candidates: every effect at every location (extra bodies from five starting local modes,
   // sensor-geometry at every channel, started from its direction as the other channels see it).
-  AddRigidConsistency(measurement, comparison, &summary);
+  AddRigidConsistency(measurement, comparison, spec, &summary);
   const std::vector<std::string> channels = comparison.CorrectableChannels();
   const auto turns = EstimateChannelTurns(measurement, comparison, options.comparison.fmin_hz, options.comparison.fmax_hz);
   for (const auto& [channel, turn] : turns) {

@@ -50,7 +50,14 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     std::snprintf(line, sizeof line, "%s: error %.5f", action.c_str(), summary.history.back().error);
     say(line);
   };
-  refit(&current, "fit");
+  {
+    // The first fit with a continuation in band (fit::FitModelWithBandContinuation): a whole-stack test
+    // fitted on the whole band at once can stop with modes paired to the wrong ones.
+    const auto params = model::MatchParameters(current, options.diagnose.params);
+    fit::FitModelWithBandContinuation(current, measurement, options.diagnose.comparison, comparison, params, options.fit);
+    summary.history.push_back({"fit", "", comparison.Error(current)});
+    say("fit: error " + std::to_string(summary.history.back().error));
+  }
 
   std::vector<model::Effect> added;  // with their fitted parameters, in order
   summary.stop_reason = "the round limit";

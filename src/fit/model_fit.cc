@@ -181,4 +181,48 @@ FitSummary FitModel(model::ModelSpec& spec, const compare::Comparison& compariso
   return summary;
 }
 
+FitSummary FitModelWithBandContinuation(model::ModelSpec& spec, const measurement::FrfData& measurement,
+                                        const compare::ComparisonOptions& comparison_options,
+                                        const compare::Comparison& comparison,
+                                        const std::vector<model::ParameterInfo>& parameters, const FitOptions& options,
+                                        const std::vector<BoundRule>& bounds) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Eigen::VectorXd& f = comparison.frequency_hz();
+  const double f_low = f(0), f_high = f(f.size() - 1);
+  const double error_before = comparison.Error(spec);
+  // Route 1: the stages, each from the previous one's result.
+  model::ModelSpec staged = spec;
+  const auto history = spec.history;
+  std::vector<double> edges;
+  for (double edge = 8.0 * f_low; edge < f_high / 1.25; edge *= 2.5) edges.push_back(edge);
+  for (double edge : edges) {
+    compare::ComparisonOptions stage_options = comparison_options;
+    stage_options.fmax_hz = edge;
+    try {
+      const compare::Comparison stage = compare::Comparison::Create(staged, measurement, stage_options);
+      FitModel(staged, stage, parameters, options, bounds);
+    } catch (const InputError&) {
+      continue;  // too few points or no significant element below the edge
+    }
+  }
+  staged.history = history;
+  FitSummary via_stages = FitModel(staged, comparison, parameters, options, bounds);
+  // Route 2: directly on the whole band from the model as given.
+  model::ModelSpec direct = spec;
+  FitSummary at_once = FitModel(direct, comparison, parameters, options, bounds);
+  const bool stages_better = via_stages.final_error < at_once.final_error;
+  FitSummary& kept = stages_better ? via_stages : at_once;
+  spec = stages_better ? staged : direct;
+  std::ostringstream note;
+  note << "; kept the " << (stages_better ? "band continuation" : "direct fit") << " (error "
+       << Number(via_stages.final_error) << " with " << edges.size() << " band stages, " << Number(at_once.final_error)
+       << " directly)";
+  kept.message += note.str();
+  kept.initial_error = error_before;
+  kept.initial_cost = 0.5 * error_before * error_before;
+  kept.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!spec.history.empty()) spec.history.back().detail += note.str();
+  return kept;
+}
+
 }  // namespace stagefit::fit

@@ -155,8 +155,9 @@ FitRecipe ParseFitRecipe(std::string_view text, const std::string& source, const
   if (auto s = r.String(root, "space")) {
     try {
       recipe.comparison.space = compare::ParseComparisonSpace(*s, source + ": space");
+      recipe.space_given = true;
     } catch (const InputError&) {
-      r.Error(root.get("space"), "space", "= '" + *s + "', expected compliance or raw");
+      r.Error(root.get("space"), "space", "= '" + *s + "', expected compliance, bodies or raw");
     }
   }
   if (const toml::node* node = root.get("band")) {

@@ -339,26 +339,21 @@ std::string RigidConsistency::BriefReport() const {
   return s.str();
 }
 
-RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
-                                      const std::vector<FrequencyBand>& bands) {
-  CheckShapes(raw);
-  const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
-  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
-  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
-  CheckObservable(J_a, Where(raw) + ": sensors");
-  CheckObservable(J_F, Where(raw) + ": impacts");
-  const int nout = raw.num_outputs();
-  const int nin = raw.num_inputs();
-  const Eigen::MatrixXcd out_residual =
-      (Eigen::MatrixXd::Identity(nout, nout) - J_a * PseudoInverse(J_a))
-          .cast<std::complex<double>>();
-  const Eigen::MatrixXcd in_residual =
-      (Eigen::MatrixXd::Identity(nin, nin) - J_F * PseudoInverse(J_F))
-          .cast<std::complex<double>>();
+namespace {
 
+/// Shares of the data energy that the residual operators leave, per channel and band (header of
+/// CalcRigidConsistency()): R_out = out_residual H_L, R_in = H_L in_residual (no inputs when
+/// in_residual is empty).
+RigidConsistency ConsistencyOf(const FrfData& raw, const Eigen::MatrixXcd& out_residual,
+                               const Eigen::MatrixXcd& in_residual, const std::vector<FrequencyBand>& bands) {
+  const int nout = raw.num_outputs();
+  const bool with_inputs = in_residual.size() > 0;
+  const int nin = with_inputs ? raw.num_inputs() : 0;
   RigidConsistency result;
   for (const auto& c : raw.outputs) result.output_names.push_back(c.name);
-  for (const auto& c : raw.inputs) result.input_names.push_back(c.name);
+  if (with_inputs) {
+    for (const auto& c : raw.inputs) result.input_names.push_back(c.name);
+  }
   std::vector<FrequencyBand> candidate = bands;
   if (candidate.empty() && raw.num_frequencies() > 0) {
     candidate = MakeFractionalOctaveBands(raw.frequency_hz(0),
@@ -377,8 +372,10 @@ RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d&
       const Eigen::MatrixXd energy = H.cwiseAbs2();
       orow += (out_residual * H).cwiseAbs2().rowwise().sum();
       ohrow += energy.rowwise().sum();
-      icol += (H * in_residual).cwiseAbs2().colwise().sum().transpose();
-      ihcol += energy.colwise().sum().transpose();
+      if (with_inputs) {
+        icol += (H * in_residual).cwiseAbs2().colwise().sum().transpose();
+        ihcol += energy.colwise().sum().transpose();
+      }
     }
     if (count == 0) continue;
     result.bands.push_back(band);
@@ -392,14 +389,54 @@ RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d&
   result.output_residual_share.resize(nout, nb);
   result.input_residual_share.resize(nin, nb);
   result.output_overall.resize(nb);
-  result.input_overall.resize(nb);
+  result.input_overall = Eigen::VectorXd::Zero(nb);
   for (int b = 0; b < nb; ++b) {
     for (int i = 0; i < nout; ++i) result.output_residual_share(i, b) = share(out_r[b](i), out_h[b](i));
     for (int j = 0; j < nin; ++j) result.input_residual_share(j, b) = share(in_r[b](j), in_h[b](j));
     result.output_overall(b) = share(out_r[b].sum(), out_h[b].sum());
-    result.input_overall(b) = share(in_r[b].sum(), in_h[b].sum());
+    if (with_inputs) result.input_overall(b) = share(in_r[b].sum(), in_h[b].sum());
   }
   return result;
+}
+
+}  // namespace
+
+RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
+                                      const std::vector<FrequencyBand>& bands) {
+  CheckShapes(raw);
+  const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
+  CheckObservable(J_a, Where(raw) + ": sensors");
+  CheckObservable(J_F, Where(raw) + ": impacts");
+  const int nout = raw.num_outputs();
+  const int nin = raw.num_inputs();
+  const Eigen::MatrixXcd out_residual =
+      (Eigen::MatrixXd::Identity(nout, nout) - J_a * PseudoInverse(J_a)).cast<std::complex<double>>();
+  const Eigen::MatrixXcd in_residual =
+      (Eigen::MatrixXd::Identity(nin, nin) - J_F * PseudoInverse(J_F)).cast<std::complex<double>>();
+  return ConsistencyOf(raw, out_residual, in_residual, bands);
+}
+
+RigidConsistency CalcRigidConsistencyPerBody(const FrfData& raw, const std::map<std::string, Eigen::Vector3d>& p_WBcm,
+                                             const std::vector<FrequencyBand>& bands) {
+  CheckShapes(raw);
+  const int nout = raw.num_outputs();
+  Eigen::MatrixXd out_residual = Eigen::MatrixXd::Zero(nout, nout);
+  for (const auto& [body, rows] : GroupByBody(raw.outputs, raw, "sensor")) {
+    auto it = p_WBcm.find(body);
+    if (it == p_WBcm.end()) {
+      throw InputError(Where(raw) + ": body '" + body + "' carries sensors but has no centre of mass given");
+    }
+    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), it->second, "sensor", Where(raw) + ": ");
+    CheckObservable(J_a, Where(raw) + ": sensors on body '" + body + "'");
+    const int m = static_cast<int>(rows.size());
+    const Eigen::MatrixXd block = Eigen::MatrixXd::Identity(m, m) - J_a * PseudoInverse(J_a);
+    for (int r = 0; r < m; ++r) {
+      for (int c = 0; c < m; ++c) out_residual(rows[r], rows[c]) = block(r, c);
+    }
+  }
+  return ConsistencyOf(raw, out_residual.cast<std::complex<double>>(), Eigen::MatrixXcd(), bands);
 }
 
 namespace {

@@ -224,6 +224,45 @@ std::vector<ChannelGeometry> ComplianceTestImpacts(const std::string& body, cons
   return channels;
 }
 
+std::vector<ChannelGeometry> WholeStackSensors(const model::ModelSpec& spec) {
+  const Eigen::Vector3d offsets[3] = {{0.2, 0.0, 0.05}, {-0.1, 0.17, 0.05}, {-0.1, -0.17, 0.05}};
+  std::vector<ChannelGeometry> channels;
+  for (const auto& body : spec.bodies) {
+    for (int a = 0; a < 3; ++a) {
+      for (int axis = 0; axis < 3; ++axis) {
+        ChannelGeometry c;
+        c.name = body.name + "_a" + std::to_string(a + 1) + "xyz"[axis];
+        c.body = body.name;
+        c.position_W = body.com_W + offsets[a];
+        c.direction_W = Eigen::Vector3d::Unit(axis);
+        channels.push_back(c);
+      }
+    }
+  }
+  return channels;
+}
+
+std::vector<ChannelGeometry> WholeStackImpacts(const model::ModelSpec& spec, const std::string& hit_body) {
+  const int b = model::FindBody(spec, hit_body);
+  if (b < 0) throw InputError("whole-stack test: the model has no body '" + hit_body + "' to hit");
+  const Eigen::Vector3d p = spec.bodies[b].com_W;
+  const std::pair<Eigen::Vector3d, Eigen::Vector3d> hits[5] = {{{0.25, 0.15, 0.05}, {-1, 0, 0}},
+                                                               {{0.25, 0.15, 0.05}, {0, -1, 0}},
+                                                               {{0.25, 0.15, 0.05}, {0, 0, -1}},
+                                                               {{-0.25, -0.15, 0.05}, {0, 1, 0}},
+                                                               {{-0.25, -0.15, 0.05}, {0, 0, -1}}};
+  std::vector<ChannelGeometry> channels;
+  for (int i = 0; i < 5; ++i) {
+    ChannelGeometry c;
+    c.name = "h" + std::to_string(i + 1);
+    c.body = hit_body;
+    c.position_W = p + hits[i].first;
+    c.direction_W = hits[i].second;
+    channels.push_back(c);
+  }
+  return channels;
+}
+
 Eigen::VectorXd LogFrequencies(double fmin_hz, double fmax_hz, int count) {
   Eigen::VectorXd f(count);
   for (int i = 0; i < count; ++i) f(i) = fmin_hz * std::pow(fmax_hz / fmin_hz, count == 1 ? 0.0 : double(i) / (count - 1));
@@ -392,8 +431,9 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
   }
   int frame = model::FindFrame(nominal, nominal.compliance_frame);
   const Eigen::Vector3d p_WXo = frame >= 0 ? nominal.frames[frame].origin_W : Eigen::Vector3d(0, 0, -0.03);
-  std::vector<ChannelGeometry> sensors = ComplianceTestSensors("hexapod", p_WXo);
-  std::vector<ChannelGeometry> impacts = ComplianceTestImpacts("hexapod", p_WXo);
+  const bool whole_stack = options.layout == TestLayout::kWholeStack;
+  std::vector<ChannelGeometry> sensors = whole_stack ? WholeStackSensors(nominal) : ComplianceTestSensors("hexapod", p_WXo);
+  std::vector<ChannelGeometry> impacts = whole_stack ? WholeStackImpacts(nominal) : ComplianceTestImpacts("hexapod", p_WXo);
   std::vector<ChannelGeometry> true_sensors = sensors;
 
   const char* kinds[] = {"payload", "extra-body", "servo-stiffness", "coupled-stiffness",
@@ -430,7 +470,7 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
   noise.relative = noise.absolute = noise_level;
   noise.seed = seed * 7919 + 1;
   AddNoise(c.measurement, noise);
-  c.measurement.frame_origin_W = p_WXo;
+  if (!whole_stack) c.measurement.frame_origin_W = p_WXo;
   c.measurement.source = "hidden-effect case " + std::to_string(seed);
   return c;
 }

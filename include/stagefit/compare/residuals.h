@@ -94,11 +94,23 @@ namespace stagefit::compare {
 enum class ComparisonSpace {
   kCompliance,  ///< the 6x6 compliance at {X} (measurement projected with J_a and J_F)
   kRaw,         ///< the raw accelerometer x hammer channels
+  /// Sensors on several bodies (a whole-stack test): each body's sensors projected to the 6 DoF of that
+  /// body's centre of mass (measurement::ProjectPerBody), outputs "<body>.Dx" ... "<body>.Rz"; the
+  /// impacts stay raw. Model side: the motion of each body's centre of mass under forces at the impacts.
+  kBodies,
 };
 
-/// "compliance" | "raw"; throws InputError naming `context` (e.g. "--space") otherwise.
+/// "compliance" | "bodies" | "raw"; throws InputError naming `context` (e.g. "--space") otherwise.
 ComparisonSpace ParseComparisonSpace(const std::string& text, const std::string& context);
 std::string ToString(ComparisonSpace space);
+
+/// The space a measurement is compared in when none is asked for: sensors on one body (or no
+/// geometry): compliance; sensors on several bodies: bodies. `reason` says why, for the user.
+struct DefaultSpace {
+  ComparisonSpace space = ComparisonSpace::kCompliance;
+  std::string reason;
+};
+DefaultSpace ChooseDefaultSpace(const measurement::FrfData& measurement);
 
 /// Default significance threshold on kappa (header): 0.1 = -20 dB below the reference elements.
 inline constexpr double kDefaultSignificanceThreshold = 0.1;

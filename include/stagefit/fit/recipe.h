@@ -4,7 +4,7 @@
 //
 //     measurement = "../measurements/compliance.mat"   # relative to the recipe's folder
 //     model = "tuned.toml"                              # default: the embedded micro-station
-//     space = "compliance"                              # compliance | raw
+//     space = "compliance"                              # compliance | bodies | raw
 //     band = ["5 Hz", "700 Hz"]                         # numbers are Hz
 //     significance = 0.1                                # compare::ComparisonOptions threshold
 //     params = ["*.k.*"]                                # patterns of the free parameters
@@ -43,6 +43,7 @@ struct FitRecipe {
   std::string measurement;              ///< resolved against the recipe's folder; empty = not given
   std::string model;                    ///< likewise
   compare::ComparisonOptions comparison;
+  bool space_given = false;             ///< the recipe names the comparison space
   std::vector<std::string> params;      ///< empty = not given
   std::vector<BoundRule> bounds;
   FitOptions options;

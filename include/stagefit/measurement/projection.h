@@ -143,6 +143,13 @@ struct RigidConsistency {
 RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
                                       const std::vector<FrequencyBand>& bands = {});
 
+/// The same per body, for sensors on several bodies (a whole-stack test): each output channel against
+/// the rigid motion of its own body, projected from that body's sensors about its centre of mass
+/// p_WBcm (every sensor body needs 6 observable DoF). Inputs are not checked (impacts on one body
+/// rarely observe its six DoF): input_names empty, input_overall 0. Throws InputError naming the body.
+RigidConsistency CalcRigidConsistencyPerBody(const FrfData& raw, const std::map<std::string, Eigen::Vector3d>& p_WBcm,
+                                             const std::vector<FrequencyBand>& bands = {});
+
 /// A channel's direction as the other channels' rigid-body motion explains it (see
 /// EstimateChannelDirections()).
 struct ChannelDirectionEstimate {

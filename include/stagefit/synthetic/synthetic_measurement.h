@@ -48,6 +48,19 @@ void AddNoise(measurement::FrfData& data, const NoiseOptions& options);
 std::vector<measurement::ChannelGeometry> ComplianceTestSensors(const std::string& body, const Eigen::Vector3d& p_WXo);
 std::vector<measurement::ChannelGeometry> ComplianceTestImpacts(const std::string& body, const Eigen::Vector3d& p_WXo);
 
+/// A whole-stack modal test (seed Figure 2.3): three triaxial accelerometers on every body of `spec`
+/// (channels "<body>_a1x" ... "<body>_a3z", in a triangle 0.2 m around the body's centre of mass, 50 mm
+/// above it, so that each body's six DoF are observed), and five hammer impacts on the translation
+/// stage `hit_body` ("h1" ... "h5": x, y, z at one corner, y and z at the opposite one).
+std::vector<measurement::ChannelGeometry> WholeStackSensors(const model::ModelSpec& spec);
+std::vector<measurement::ChannelGeometry> WholeStackImpacts(const model::ModelSpec& spec, const std::string& hit_body = "ty");
+
+/// Which test a synthetic measurement imitates.
+enum class TestLayout {
+  kTopPlate,    ///< the 12x10 compliance test of the top plate (SPEC §2)
+  kWholeStack,  ///< accelerometers on every body, hammer on the translation stage (WholeStackSensors)
+};
+
 /// Log-spaced frequencies, Hz.
 Eigen::VectorXd LogFrequencies(double fmin_hz, double fmax_hz, int count);
 
@@ -73,6 +86,7 @@ struct HiddenEffectCase {
 };
 struct HiddenEffectOptions {
   int num_effects = 1;              ///< 0, 1 or 2
+  TestLayout layout = TestLayout::kTopPlate;
   double stiffness_scatter = 0.15;  ///< log-normal sigma of the stiffness factors (clipped to [1/1.6, 1.6])
   double noise_min = 0.01, noise_max = 0.03;
   double fmin_hz = 10.0, fmax_hz = 400.0;
