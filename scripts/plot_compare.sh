@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Renders the tables written by `stagefit compare --out-dir DIR` as PNG files (gnuplot-nox is enough):
 #   compare_bode_mag.png, compare_bode_phase.png   measured against model, one panel per used element
+#                                                   (bodies space: compare_<body>_bode_mag.png ... per body)
 #   compare_raw_bode_mag.png, ..._phase.png         the same for the raw channels (if compare_frf_raw.csv)
 #   compare_error_map.png                           error by element (rows) and third-octave band (columns)
 #   compare_modes.md                                the mode pairing table
@@ -67,7 +68,17 @@ bode() {
   done
 }
 
-bode "$dir/compare_frf.csv" compare "compared elements"
+# The bodies space (elements "<body>.<DoF>/<impact>"): one pair of plots per body.
+bodies=$(awk -F, 'NR > 1 { split($2, a, "/"); n = index(a[1], "."); if (n > 0) print substr(a[1], 1, n - 1) }' \
+           "$dir/compare_frf.csv" | awk '!seen[$0]++')
+if [[ -n "$bodies" ]]; then
+  while IFS= read -r body; do
+    awk -F, -v b="$body." 'NR == 1 || index($2, b) == 1' "$dir/compare_frf.csv" >"$work/frf_$body.csv"
+    bode "$work/frf_$body.csv" "compare_$body" "body $body"
+  done <<<"$bodies"
+else
+  bode "$dir/compare_frf.csv" compare "compared elements"
+fi
 [[ -f "$dir/compare_frf_raw.csv" ]] && bode "$dir/compare_frf_raw.csv" compare_raw "raw channels"
 
 # Error map: element x band matrix.

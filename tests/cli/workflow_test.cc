@@ -147,6 +147,39 @@ TEST(LoopCommand, AMissingOutputFolderIsRefusedBeforeTheRun) {
   EXPECT_NE(r.output.find("/nonexistent-folder"), std::string::npos) << r.output;
 }
 
+// The shipped whole-stack example: compare and fit choose the bodies space themselves and say so;
+// fit lands near the noise floor's neighbourhood only once the payload is there, diagnose names it.
+TEST(WholeStackExample, CompareFitAndDiagnoseWorkInTheBodiesSpace) {
+  const std::string m = std::string(STAGEFIT_SOURCE_DIR) + "/measurements/whole-stack/frf.mat";
+  auto dir = TempDir("whole-stack");
+  auto compare = RunStagefit("compare --measurement " + m + " --out-dir " + (dir / "cmp").string() + " --report " +
+                             (dir / "c.json").string());
+  ASSERT_EQ(compare.exit_code, 0) << compare.output;
+  EXPECT_NE(compare.output.find("comparison space: bodies (the sensors are on 5 bodies"), std::string::npos)
+      << compare.output;
+  {
+    std::ifstream table(dir / "cmp" / "compare_elements.csv");
+    const std::string text((std::istreambuf_iterator<char>(table)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("rz.Dx/h1"), std::string::npos) << text.substr(0, 400);
+  }
+  EXPECT_EQ(ReadJson(dir / "c.json")["breakdown"]["space"].get<std::string>(), "bodies");
+  auto fit = RunStagefit("fit --measurement " + m + " --out " + (dir / "tuned.toml").string() + " --report " +
+                         (dir / "f.json").string());
+  ASSERT_EQ(fit.exit_code, 0) << fit.output;
+  const auto f = ReadJson(dir / "f.json");
+  EXPECT_EQ(f["space"].get<std::string>(), "bodies");
+  EXPECT_LT(f["error"].get<double>(), 0.2 * f["error_before"].get<double>());
+  auto diagnose = RunStagefit("diagnose --model " + (dir / "tuned.toml").string() + " --measurement " + m +
+                              " --effects payload --report " + (dir / "d.json").string());
+  ASSERT_EQ(diagnose.exit_code, 0) << diagnose.output;
+  const auto d = ReadJson(dir / "d.json");
+  ASSERT_TRUE(d["effect_found"].get<bool>()) << diagnose.output;
+  EXPECT_EQ(d["candidates"][0]["with"].get<std::string>().rfind("payload@rz:", 0), 0u) << diagnose.output;
+  EXPECT_TRUE(d["where"]["rigid_consistency"].is_object()) << diagnose.output;  // per body
+  auto raw = RunStagefit("compare --measurement " + m + " --space compliance");
+  EXPECT_EQ(raw.exit_code, 2) << raw.output;  // one frame cannot hold sensors on five bodies
+}
+
 TEST(FitCommand, RefusesToWriteOverItsInput) {
   auto r = RunStagefit("fit --measurement " + kExample + "frf.mat --out " + kExample + "frf.mat");
   EXPECT_EQ(r.exit_code, 2) << r.output;
