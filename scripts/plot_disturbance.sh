@@ -35,8 +35,16 @@ for csv in "$@"; do
   png="$out_dir/$base.png"
   plots=""
   ylabel="Amplitude spectral density"
+  meta="${csv%.csv}.meta.json"
   unit_of() {
-    awk -v n="$1" '$1 == "#" && $2 == "unit" && $3 == n { $1 = $2 = $3 = ""; sub(/^ +/, ""); print; exit }' "$csv"
+    local u
+    u=$(awk -v n="$1" '$1 == "#" && $2 == "unit" && $3 == n { $1 = $2 = $3 = ""; sub(/^ +/, ""); print; exit }' "$csv")
+    # Header-first files keep their units in the .meta.json sidecar: "units": {"NAME": "UNIT", ...}.
+    if [[ -z "$u" && -f "$meta" ]]; then
+      u=$(awk -v n="\"$1\":" '/"units"/ { inside = 1; next } inside && /}/ { exit }
+            inside && $1 == n { line = $0; sub(/^[^:]*: *"/, "", line); sub(/",? *$/, "", line); print line; exit }' "$meta")
+    fi
+    echo "$u"
   }
   reliable_column=0
   for ((c = 1; c < ${#columns[@]}; ++c)); do

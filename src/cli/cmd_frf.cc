@@ -49,8 +49,7 @@ std::string Number(double value) {
 void WriteFrfCsv(const std::filesystem::path& path, const response::FrfArray& h,
                  const std::vector<Geometry>& outputs, const std::vector<Geometry>& inputs) {
   std::ostringstream csv;
-  csv << "# quantity: " << response::ToString(h.quantity) << "\n";
-  csv << "freq_hz,output,input,re,im\n";
+  csv << "freq_hz,output,input,re,im\n";  // header first; quantity and units in the .meta.json sidecar
   for (int o = 0; o < h.num_outputs(); ++o) {
     for (int i = 0; i < h.num_inputs(); ++i) {
       for (int f = 0; f < h.num_frequencies(); ++f) {
@@ -79,6 +78,8 @@ void WriteFrfCsv(const std::filesystem::path& path, const response::FrfArray& h,
   sidecar += ".geometry.csv";
   WriteFileAtomically(path, csv.str());
   WriteFileAtomically(sidecar, geometry.str());
+  const auto quantity = measurement::ParseFrfQuantity(response::ToString(h.quantity));
+  WriteCsvMeta(path, measurement::FrfCsvMeta(quantity.value_or(measurement::FrfQuantity::kAccelerance)));
 }
 
 // A measurement channel as a model input or output: its own geometry, or a model sensor/excitation

@@ -12,6 +12,7 @@
 #include "command.h"
 #include "report.h"
 #include "stagefit/common/atomic_file.h"
+#include "stagefit/common/csv_meta.h"
 #include "stagefit/common/error.h"
 #include "stagefit/compare/compare_model.h"
 #include "stagefit/diagnose/loop.h"
@@ -89,6 +90,11 @@ void RegisterLoopCommand(CLI::App& app) {
     if (!o->out_dir.empty()) {
       const std::filesystem::path dir = o->out_dir;
       WriteFileAtomically(dir / "loop_history.csv", diagnose::FormatLoopHistory(summary));
+      CsvMeta meta;
+      meta.units = {{"step", ""}, {"action", ""}, {"effect", ""}, {"error", "1"}, {"noise_floor", "1"}, {"times_floor", "1"}};
+      meta.notes = {"error: the SPEC §4 error scalar after each step of the loop; noise_floor: the error the "
+                    "measurement's noise alone leaves (docs/error-metric.md §8)"};
+      WriteCsvMeta(dir / "loop_history.csv", meta);
       compare::CompareOptions before_options;
       before_options.comparison = options.diagnose.comparison;
       const std::vector<std::filesystem::path> protect = {o->measurement, o->common.model_path, o->out};

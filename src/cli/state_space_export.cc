@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "stagefit/common/atomic_file.h"
+#include "stagefit/common/csv_meta.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::cli {
@@ -55,6 +56,13 @@ std::vector<std::string> WriteStateSpaceCsv(const std::string& out, const model:
   for (const auto& item : items) {
     std::string path = CsvPath(out, item.suffix);
     WriteFileAtomically(path, MatrixCsv(*item.m, *item.rows, *item.cols));
+    CsvMeta meta;
+    meta.fields["matrix"] = item.suffix;
+    meta.units = {{"name", ""}};
+    meta.notes = {std::string("rows: the first column (name); columns: the header. SI units of each entry follow "
+                              "from its row and column (states q in m or rad and q' in m/s or rad/s; inputs N, Nm "
+                              "or m; outputs m or rad): docs/model.md")};
+    WriteCsvMeta(path, meta);
     written.push_back(path);
   }
   return written;

@@ -6,6 +6,8 @@
 #include <system_error>
 
 #include "stagefit/common/atomic_file.h"
+#include "stagefit/common/csv_meta.h"
+#include "stagefit/measurement/csv_file.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::compare {
@@ -169,11 +171,38 @@ std::vector<std::filesystem::path> WriteCompareTables(const std::filesystem::pat
     files.push_back({"compare_frf_raw.csv", FormatFrfTable(*summary.raw, *summary.raw_result)});
     files.push_back({"compare_elements_raw.csv", FormatElementTable(*summary.raw_result, *summary.raw)});
   }
+  // Units and notes of each table in its "<stem>.meta.json" sidecar (docs/csv-outputs.md).
+  const std::string q = measurement::ToString(summary.comparison.quantity());
+  const std::string frf_unit = measurement::FrfCsvMeta(summary.comparison.quantity()).units[3].second;
+  auto meta_of = [&](const std::string& name) {
+    CsvMeta meta;
+    meta.fields["quantity"] = q;
+    meta.fields["space"] = ToString(summary.comparison.space());
+    if (name.rfind("compare_frf", 0) == 0) {
+      meta.units = {{"freq_hz", "Hz"},       {"meas_re", frf_unit},  {"meas_im", frf_unit},  {"model_re", frf_unit},
+                    {"model_im", frf_unit},  {"meas_abs", frf_unit}, {"model_abs", frf_unit}, {"meas_phase_deg", "deg"},
+                    {"model_phase_deg", "deg"}, {"weight", "1"}};
+      meta.notes = {"FRF values in the comparison quantity, SI: " + frf_unit +
+                    " for a translation over a force; rad for rotations, Nm for torques"};
+    } else if (name.rfind("compare_elements", 0) == 0) {
+      meta.units = {{"kappa", "1"}, {"error", "1"}, {"share", "1"}, {"mean_ln_ratio", "1"}, {"mean_phase_deg", "deg"}};
+    } else if (name == "compare_bands.csv") {
+      meta.units = {{"band_low_hz", "Hz"}, {"band_high_hz", "Hz"}, {"band_centre_hz", "Hz"}, {"error", "1"}, {"share", "1"}};
+    } else if (name == "compare_element_band.csv") {
+      meta.units = {{"band_centre_hz", "Hz"}, {"error", "1"}};
+    } else {
+      meta.units = {{"f_meas_hz", "Hz"}, {"f_model_hz", "Hz"}, {"df_percent", "%"}, {"zeta_meas", "1"},
+                    {"zeta_model", "1"}, {"mac", "1"}, {"model_mode_hz", "Hz"}};
+    }
+    return meta;
+  };
   std::vector<std::filesystem::path> written;
   for (const auto& [name, content] : files) {
     const std::filesystem::path path = dir / name;
     CheckNotAnInput(path, inputs);
+    CheckNotAnInput(CsvMetaPath(path), inputs);
     WriteFileAtomically(path, content);
+    WriteCsvMeta(path, meta_of(name));
     written.push_back(path);
   }
   return written;

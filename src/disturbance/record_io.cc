@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "stagefit/common/atomic_file.h"
+#include "stagefit/common/csv_meta.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/utf8.h"
 
@@ -122,6 +123,14 @@ CsvTable ReadCsvTable(const std::filesystem::path& path) {
   }
   if (!have_header) throw InputError(table.source + ": no header line, expected column names");
   table.units.assign(table.column_names.size(), "");
+  // Units and notes from the sidecar of a header-first file ("# unit" lines of an older file win).
+  if (const auto meta = ReadCsvMeta(path)) {
+    for (const auto& [column, unit] : meta->units) {
+      const int c = table.FindColumn(column);
+      if (c >= 0) table.units[c] = unit;
+    }
+    if (table.comments.empty()) table.comments = meta->notes;
+  }
   for (const auto& [column, unit] : unit_lines) {
     const int c = table.FindColumn(column);
     if (c < 0) {
@@ -141,12 +150,14 @@ void WriteCsvTable(const std::filesystem::path& path, const CsvTable& table) {
   STAGEFIT_ASSERT(table.values.cols() == static_cast<Eigen::Index>(table.column_names.size()),
                   "CSV table with " << table.column_names.size() << " names and "
                                     << table.values.cols() << " columns");
+  // Header first, data rows only (docs/csv-outputs.md); the comments and units go to the sidecar.
+  CsvMeta meta;
+  meta.notes = table.comments;
+  for (size_t c = 0; c < table.units.size() && c < table.column_names.size(); ++c) {
+    if (!table.units[c].empty()) meta.units.emplace_back(table.column_names[c], table.units[c]);
+  }
   AtomicFile file(path);
   std::ostream& out = file.stream();
-  for (const std::string& comment : table.comments) out << "# " << comment << "\n";
-  for (size_t c = 0; c < table.units.size() && c < table.column_names.size(); ++c) {
-    if (!table.units[c].empty()) out << "# unit " << table.column_names[c] << " " << table.units[c] << "\n";
-  }
   for (size_t c = 0; c < table.column_names.size(); ++c) {
     out << (c ? "," : "") << table.column_names[c];
   }
@@ -160,6 +171,7 @@ void WriteCsvTable(const std::filesystem::path& path, const CsvTable& table) {
     out << "\n";
   }
   file.Commit();
+  WriteCsvMeta(path, meta);
 }
 
 double CalcSampleRate(const CsvTable& table, const std::string& column) {

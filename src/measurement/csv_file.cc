@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "stagefit/common/atomic_file.h"
+#include "stagefit/common/csv_meta.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::measurement {
@@ -226,6 +227,7 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
   data.source = path.string();
   bool header = false;
   bool with_coherence = false;
+  bool quantity_given = false;
   std::map<std::string, int> output_index, input_index;
   std::vector<std::vector<std::vector<Point>>> points;  // [output][input] -> points
   const auto lines = Lines(content);
@@ -240,6 +242,7 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
       const std::string key(Trim(body.substr(0, colon)));
       const std::string value(Trim(body.substr(colon + 1)));
       if (key == "quantity") {
+        quantity_given = true;
         const auto q = ParseFrfQuantity(value);
         if (!q) {
           err.Fail(line_no, "'# quantity: " + value +
@@ -380,6 +383,22 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
       }
     }
   }
+  // A header-first file keeps its quantity and frame origin in "<stem>.meta.json" ("# quantity:" and
+  // "# frame_origin:" lines of an older file win).
+  if (const auto meta = ReadCsvMeta(path)) {
+    const auto q = meta->fields.find("quantity");
+    if (!quantity_given && q != meta->fields.end()) {
+      const auto parsed = ParseFrfQuantity(q->second);
+      if (!parsed) {
+        throw InputError("'" + CsvMetaPath(path).string() + "': quantity '" + q->second +
+                         "', expected accelerance, mobility, receptance or compliance");
+      }
+      data.quantity = *parsed;
+    }
+    if (!data.frame_origin_W && meta->frame_origin_m.size() == 3) {
+      data.frame_origin_W = Eigen::Vector3d(meta->frame_origin_m[0], meta->frame_origin_m[1], meta->frame_origin_m[2]);
+    }
+  }
   const fs::path sidecar = GeometrySidecarPath(path);
   std::error_code ec;
   if (fs::exists(sidecar, ec)) {
@@ -394,12 +413,13 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
 
 void WriteCsvMeasurement(const fs::path& path, const FrfData& data) {
   Validate(data);
-  std::string out = "# quantity: " + ToString(data.quantity) + "\n";
+  // Header first, data rows only (docs/csv-outputs.md): the quantity, the frame origin and the units
+  // go to the "<stem>.meta.json" sidecar.
+  CsvMeta meta = FrfCsvMeta(data.quantity, data.has_coherence());
   if (data.frame_origin_W) {
-    out += "# frame_origin: " + FormatNumber((*data.frame_origin_W)[0]) + " " +
-           FormatNumber((*data.frame_origin_W)[1]) + " " + FormatNumber((*data.frame_origin_W)[2]) +
-           "\n";
+    meta.frame_origin_m = {(*data.frame_origin_W)[0], (*data.frame_origin_W)[1], (*data.frame_origin_W)[2]};
   }
+  std::string out;
   out += data.has_coherence() ? "freq_hz,output,input,re,im,coherence\n"
                               : "freq_hz,output,input,re,im\n";
   for (int o = 0; o < data.num_outputs(); ++o) {
@@ -431,6 +451,21 @@ void WriteCsvMeasurement(const fs::path& path, const FrfData& data) {
   for (const auto& c : data.inputs) add("impact", c);
   WriteFileAtomically(path, out);
   WriteFileAtomically(GeometrySidecarPath(path), geometry);
+  WriteCsvMeta(path, meta);
+}
+
+CsvMeta FrfCsvMeta(FrfQuantity quantity, bool with_coherence) {
+  CsvMeta meta;
+  meta.fields["quantity"] = ToString(quantity);
+  const char* unit = quantity == FrfQuantity::kAccelerance ? "m/s^2/N"
+                     : quantity == FrfQuantity::kMobility  ? "m/s/N"
+                                                           : "m/N";
+  meta.units = {{"freq_hz", "Hz"}, {"output", ""}, {"input", ""}, {"re", unit}, {"im", unit}};
+  if (with_coherence) meta.units.emplace_back("coherence", "1");
+  meta.notes = {std::string("re, im: the FRF (") + ToString(quantity) + ") output/input in SI units: " + unit +
+                " for a translation over a force; rad for a rotation output, Nm for a torque input",
+                "geometry of the channels: the .geometry.csv sidecar (kind,name,body,x,y,z,nx,ny,nz; m, unit vectors)"};
+  return meta;
 }
 
 }  // namespace stagefit::measurement

@@ -494,28 +494,28 @@ std::vector<BadInput> CsvCases() {
   };
   return {
       CsvCase("WrongHeader", [](std::string& c, std::string&) { c = Edit(c, "freq_hz,output", "frequency,output"); },
-              {"bad.csv", "line 3", "header", "expected 'freq_hz,output,input,re,im'"}),
+              {"bad.csv", "line 1", "header", "expected 'freq_hz,output,input,re,im'"}),
       CsvCase("TruncatedInsideARow",
               [line](std::string& c, std::string&) { c = c.substr(0, c.find(',', c.find(',', line(c, 40)) + 1)); },
-              {"bad.csv", "line 44", "2 fields, expected 6"}),
+              {"bad.csv", "line 42", "2 fields, expected 6"}),
       CsvCase("NotANumber",
               [line](std::string& c, std::string&) {
                 const std::size_t at = line(c, 3);
                 c = c.substr(0, at) + "10,a1x,h1,abc,0,0.9\n" + c.substr(line(c, 4));
               },
-              {"bad.csv", "line 7", "column 're': 'abc' is not a number"}),
+              {"bad.csv", "line 5", "column 're': 'abc' is not a number"}),
       CsvCase("ImaginaryPartNaN",
               [line](std::string& c, std::string&) {
                 const std::size_t at = line(c, 3);
                 c = c.substr(0, at) + "10,a1x,h1,1e-3,nan,0.9\n" + c.substr(line(c, 4));
               },
-              {"bad.csv", "line 7", "column 'im'", "nan", "expected a finite number"}),
+              {"bad.csv", "line 5", "column 'im'", "nan", "expected a finite number"}),
       CsvCase("RealPartInfinite",
               [line](std::string& c, std::string&) {
                 const std::size_t at = line(c, 3);
                 c = c.substr(0, at) + "10,a1x,h1,inf,0,0.9\n" + c.substr(line(c, 4));
               },
-              {"bad.csv", "line 7", "column 're'", "inf", "expected a finite number"}),
+              {"bad.csv", "line 5", "column 're'", "inf", "expected a finite number"}),
       CsvCase("NegativeFrequency",
               [](std::string& c, std::string&) {
                 // The first frequency of every pair becomes -10 Hz (still increasing within a pair).
@@ -529,14 +529,14 @@ std::vector<BadInput> CsvCases() {
                 const std::string row = c.substr(at, end - at);
                 c = c.substr(0, at) + row.substr(0, row.rfind(',')) + ",1.5" + c.substr(end);
               },
-              {"bad.csv", "line 4", "column 'coherence': 1.5", "expected a value in [0, 1]"}),
+              {"bad.csv", "line 2", "column 'coherence': 1.5", "expected a value in [0, 1]"}),
       CsvCase("RepeatedRow",
               [line](std::string& c, std::string&) {
                 const std::size_t at = line(c, 1);
                 const std::string row = c.substr(at, line(c, 2) - at);
                 c.insert(at, row);
               },
-              {"bad.csv", "line 6", "expected strictly increasing frequencies"}),
+              {"bad.csv", "line 4", "expected strictly increasing frequencies"}),
       CsvCase("MissingPair",
               [line](std::string& c, std::string&) {
                 // The first output-input pair is the first 12 rows: drop them.
@@ -545,7 +545,24 @@ std::vector<BadInput> CsvCases() {
               {"bad.csv", "no rows for output 'a1x' and input 'h1'"}),
       CsvCase("UnterminatedQuote",
               [line](std::string& c, std::string&) { c.insert(line(c, 2), "10,\"a1x,h1,1,0,0.9\n"); },
-              {"bad.csv", "line 6", "unterminated double quote"}),
+              {"bad.csv", "line 4", "unterminated double quote"}),
+      // The sidecar of a header-first CSV (common/csv_meta.h): not JSON, or a quantity it cannot be.
+      BadInput{"csv", "MetaNotJson",
+               [](const fs::path& dir) {
+                 const fs::path base = Synthesized(dir, "base.csv");
+                 WriteBytes(dir / "bad.csv", ReadBytes(base));
+                 WriteBytes(dir / "bad.geometry.csv", ReadBytes(dir / "base.geometry.csv"));
+                 WriteBytes(dir / "bad.meta.json", "{\"quantity\": \"accelerance\", ");
+               },
+               kCsvCommand, {"bad.meta.json", "not a JSON object"}},
+      BadInput{"csv", "MetaUnknownQuantity",
+               [](const fs::path& dir) {
+                 const fs::path base = Synthesized(dir, "base.csv");
+                 WriteBytes(dir / "bad.csv", ReadBytes(base));
+                 WriteBytes(dir / "bad.geometry.csv", ReadBytes(dir / "base.geometry.csv"));
+                 WriteBytes(dir / "bad.meta.json", "{\"quantity\": \"velocity\", \"units\": {}}");
+               },
+               kCsvCommand, {"bad.meta.json", "quantity 'velocity'", "expected accelerance, mobility"}},
       CsvCase("TooManyChannelsForItsRows",
               [](std::string& c, std::string&) {
                 // 40,000 distinct outputs and inputs in as many rows would need 1.6e9 pairs (and as

@@ -65,6 +65,36 @@ TEST_F(CsvFile, QuantityCommentIsRead) {
   EXPECT_EQ(ReadCsvMeasurement(path).quantity, FrfQuantity::kReceptance);
 }
 
+// Header first (docs/csv-outputs.md): the written file's first line is the header, the quantity, the
+// frame origin and the units are in "<stem>.meta.json", and reading it back restores them; an older
+// file's comment lines win over a sidecar.
+TEST_F(CsvFile, HeaderFirstWithTheQuantityInTheSidecar) {
+  FrfData data = MakeMeasurement(33);
+  data.quantity = FrfQuantity::kMobility;
+  data.frame_origin_W = Eigen::Vector3d(0.01, -0.02, -0.03);
+  const fs::path path = dir_ / "h.csv";
+  WriteCsvMeasurement(path, data);
+  std::ifstream in(path);
+  std::string first;
+  std::getline(in, first);
+  EXPECT_EQ(first, "freq_hz,output,input,re,im,coherence");
+  ASSERT_TRUE(fs::exists(dir_ / "h.meta.json"));
+  const auto meta = ReadCsvMeta(path);
+  ASSERT_TRUE(meta.has_value());
+  EXPECT_EQ(meta->fields.at("quantity"), "mobility");
+  ASSERT_EQ(meta->units.size(), 6u);
+  EXPECT_EQ(meta->units[3], (std::pair<std::string, std::string>("re", "m/s/N")));
+  const FrfData back = ReadCsvMeasurement(path, true);
+  EXPECT_EQ(back.quantity, FrfQuantity::kMobility);
+  ASSERT_TRUE(back.frame_origin_W.has_value());
+  EXPECT_EQ(*back.frame_origin_W, *data.frame_origin_W);
+  ExpectSameMeasurement(back, data);
+  // A comment line of an older file wins over the sidecar.
+  const fs::path old = Write("h2.csv", "# quantity: receptance\n" + std::string(kHeader) + "10,a,h,1,2\n");
+  std::ofstream(dir_ / "h2.meta.json") << "{\"quantity\": \"accelerance\", \"units\": {}}";
+  EXPECT_EQ(ReadCsvMeasurement(old).quantity, FrfQuantity::kReceptance);
+}
+
 TEST_F(CsvFile, BadInputIsAnInputErrorWithLineAndField) {
   ExpectInputError([&] { ReadCsvMeasurement(dir_ / "absent.csv"); }, "does not exist");
   ExpectInputError([&] { ReadCsvMeasurement(Write("h.csv", "f,out,in,re,im\n10,a,h,1,2\n")); },

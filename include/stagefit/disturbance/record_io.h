@@ -1,11 +1,14 @@
 #pragma once
 // CSV files of the disturbance layer: time records, scan records and PSD tables share one layout.
 //
-//   # free comment lines start with '#'
-//   # unit <column> <unit>          (optional, one per column; informative: values are always SI)
-//   time_s,voltage                  (header: column names, comma-separated, required)
-//   0,0.00123
+//   time_s,voltage                  (header: column names, comma-separated, required; the first line
+//   0,0.00123                        of a written file)
 //   0.00390625,-0.000456
+//
+// Written files keep their notes and units (informative: values are always SI) in the sidecar
+// "<stem>.meta.json" (common/csv_meta.h). Read files may also carry, before the header,
+//   # free comment lines
+//   # unit <column> <unit>          (one per column; they win over the sidecar's units)
 //
 // Time records have a first column time_s (s, evenly spaced); straightness scans a first column
 // position_m (m); PSD tables a first column frequency_hz (Hz) or spatial_frequency_per_m (1/m) and one

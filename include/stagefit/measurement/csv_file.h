@@ -1,10 +1,16 @@
 #pragma once
 // Measurements as CSV, long format (SPEC §3): one row per output, input and frequency,
 //
-//   # quantity: accelerance                 optional comment lines before the header
-//   # frame_origin: 0 0 -0.03               (m, optional: origin of {X} in W)
-//   freq_hz,output,input,re,im[,coherence]  header, required
+//   freq_hz,output,input,re,im[,coherence]  header, required, the first line of a written file
 //   10,a1x,h1,1.25e-3,-4.5e-4[,0.98]        Hz, channel names, real and imaginary parts
+//
+// with the quantity, the frame origin and the units in "<stem>.meta.json" (common/csv_meta.h), so that
+// csv, numpy and pandas read the file with their defaults. Older files may instead start with
+//
+//   # quantity: accelerance                 comment lines before the header
+//   # frame_origin: 0 0 -0.03               (m, optional: origin of {X} in W)
+//
+// which are still read (and win over a sidecar).
 //
 // with the geometry in a sidecar "<stem>.geometry.csv" beside it:
 //
@@ -12,14 +18,16 @@
 //   sensor,a1x,hexapod,0,0.14,-0.03,1,0,0   kind = sensor (output) or impact (input); m; unit vector
 //   impact,h1,,,,,,,                        empty body and numbers: geometry unknown
 //
-// Quantity: "# quantity: <accelerance|mobility|receptance|compliance>" in a comment line before the
-// header; when absent the FRFs are read as accelerance (the hammer-test case: accelerometers over
+// Quantity: "quantity" in the sidecar, or "# quantity: <accelerance|mobility|receptance|compliance>" in
+// a comment line before the header; when absent the FRFs are read as accelerance (the hammer-test case: accelerometers over
 // force). Other comment lines ('#' first) and blank lines are ignored. Rows may come in any order;
 // every (output, input) pair must list the same strictly increasing frequencies. Fields may be
 // double-quoted (RFC 4180). Numbers are written in the shortest form that reads back to the same
 // double, so a written file reads back bit-identical.
 
 #include <filesystem>
+
+#include "stagefit/common/csv_meta.h"
 
 #include "stagefit/measurement/frf_data.h"
 
@@ -44,5 +52,8 @@ FrfData ReadCsvMeasurement(const std::filesystem::path& path, bool require_geome
 /// present; "# quantity" and "# frame_origin" comments) and the geometry sidecar, each atomically.
 /// Throws InputError when Validate(data) fails or a file cannot be written.
 void WriteCsvMeasurement(const std::filesystem::path& path, const FrfData& data);
+
+/// The sidecar of an FRF CSV of `quantity`: the quantity and the unit of every column.
+CsvMeta FrfCsvMeta(FrfQuantity quantity, bool with_coherence = false);
 
 }  // namespace stagefit::measurement
