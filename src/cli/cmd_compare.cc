@@ -22,6 +22,7 @@ struct CompareFlags {
   CommonOptions common;
   std::string measurement;
   std::string space;
+  std::string geometry;
   std::string fmin;
   std::string fmax;
   std::string out_dir;
@@ -110,7 +111,7 @@ void RunCompare(const CompareFlags& f) {
   options.modes.min_mac = f.min_mac;
 
   const model::ModelSpec spec = LoadModelFromOptions(f.common);
-  const measurement::FrfData data = measurement::ReadMeasurement(f.measurement);
+  const measurement::FrfData data = ReadMeasurementFor(f.measurement, f.geometry, spec);
   options.comparison.space = ResolveComparisonSpace(f.space, data);
   const compare::CompareSummary summary = compare::CompareModel(spec, data, options);
 
@@ -153,6 +154,7 @@ void RegisterCompareCommand(CLI::App& app) {
   AddCommonOptions(*command, flags->common);
   AddWithOption(*command, flags->common);
   command->add_option("--measurement", flags->measurement, "measurement file (.mat, .csv, .uff)")->required();
+  command->add_option("--geometry", flags->geometry, kGeometryHelp);
   command->add_option("--space", flags->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--fmin", flags->fmin, "lower end of the comparison band (e.g. \"10 Hz\"; default: the data's)");

@@ -23,6 +23,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     CommonOptions common;
     std::string measurement;
     std::string space;
+    std::string geometry;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -32,6 +33,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   AddCommonOptions(*command, o->common);
   AddWithOption(*command, o->common);
   command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
+  command->add_option("--geometry", o->geometry, kGeometryHelp);
   command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted with every candidate (comma-separated patterns)")
@@ -45,7 +47,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     if (!o->out.empty()) CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     model::ModelSpec spec = LoadModelFromOptions(o->common);
-    measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
+    measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
     diagnose::DiagnoseOptions options;
     options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;

@@ -2,6 +2,8 @@
 // (layout: measurements/README.md, "Raw hammer time data"), written as a measurement file.
 
 #include <cstdio>
+#include <filesystem>
+#include <sstream>
 #include <memory>
 
 #include <nlohmann/json.hpp>
@@ -14,6 +16,7 @@
 #include "stagefit/measurement/hammer_estimation.h"
 #include "stagefit/measurement/measurement_file.h"
 #include "stagefit/measurement/raw_hammer_file.h"
+#include "stagefit/measurement/uff_time.h"
 
 namespace stagefit::cli {
 namespace {
@@ -31,6 +34,8 @@ struct EstimateFlags {
   std::string estimator = "h1";
   bool exclude_flagged = false;
   bool no_force_window = false;
+  std::string force_channel;
+  std::string responses;
 };
 
 nlohmann::json HitJson(const sm::HitDiagnostics& d, const sm::RawHammerData& data) {
@@ -74,7 +79,23 @@ void RunEstimate(const EstimateFlags& f) {
   }
   options.exclude_flagged = f.exclude_flagged;
 
-  const sm::RawHammerData data = sm::ReadRawHammerFile(f.raw);
+  sm::RawHammerData data;
+  const std::string ext = std::filesystem::path(f.raw).extension().string();
+  if (ext == ".uff" || ext == ".unv" || ext == ".UFF" || ext == ".UNV") {
+    // UFF 58 time records (measurement/uff_time.h).
+    sm::UffTimeOptions uff;
+    uff.force_channel = f.force_channel;
+    std::stringstream list(f.responses);
+    for (std::string name; std::getline(list, name, ',');) {
+      if (!name.empty()) uff.responses.push_back(name);
+    }
+    data = sm::ReadUffRawHammer(f.raw, uff);
+  } else {
+    if (!f.force_channel.empty() || !f.responses.empty()) {
+      throw UsageError("--force and --responses name channels of a UFF time-record file; '" + f.raw + "' is not one");
+    }
+    data = sm::ReadRawHammerFile(f.raw);
+  }
   const sm::EstimationSummary summary = sm::EstimateFrf(data, options);
   sm::WriteMeasurement(f.out, summary.frf);
   std::fputs(summary.BriefReport().c_str(), stdout);
@@ -118,7 +139,14 @@ void RegisterEstimateCommand(CLI::App& app) {
       "measurements/README.md); flags double hits, overloads and incoherent hits");
   auto f = std::make_shared<EstimateFlags>();
   AddCommonOptions(*command, f->common);
-  command->add_option("RAW", f->raw, "raw hammer time data (.mat)")->required();
+  command->add_option("RAW", f->raw,
+                      "raw hammer time data: .mat (layout in measurements/README.md) or .uff/.unv with UFF 58 time "
+                      "records (one per channel and hit; docs/uff.md)")
+      ->required();
+  command->add_option("--force", f->force_channel,
+                      "UFF: the force channel's name (e.g. 1001-Y); default: in each hit the record whose response "
+                      "DOF is its reference DOF");
+  command->add_option("--responses", f->responses, "UFF: the response channels to use, comma-separated (default: all)");
   command->add_option("--out", f->out, "measurement file to write: OUT.mat, OUT.csv or OUT.uff")
       ->required();
   command->add_option("--force-window", f->force_window,

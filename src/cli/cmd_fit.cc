@@ -101,7 +101,7 @@ void RegisterFitCommand(CLI::App& app) {
              "NLopt selectable; writes the tuned model file");
   struct Options {
     CommonOptions common;
-    std::string measurement, params, recipe, solver, nlopt_algorithm, jacobian, space, out;
+    std::string measurement, params, recipe, solver, nlopt_algorithm, jacobian, space, out, geometry;
     int starts = 1, max_iterations = 100, probe_rounds = 4;
     std::uint64_t seed = 1;
     double fmin_hz = 0.0, fmax_hz = 0.0;
@@ -131,6 +131,7 @@ void RegisterFitCommand(CLI::App& app) {
                                            "after the fit, rounds of basin probes: each stiffness x 1/8 .. 8, "
                                            "restart from the best probe that lowers the error (default 4; 0: none)")
                            ->check(CLI::NonNegativeNumber);
+  command->add_option("--geometry", o->geometry, kGeometryHelp);
   auto* space_option = command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
                            ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   auto* fmin_option = command->add_option("--fmin", o->fmin_hz, "lower end of the comparison band, Hz");
@@ -175,7 +176,7 @@ void RegisterFitCommand(CLI::App& app) {
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
 
     model::ModelSpec spec = LoadModelFromOptions(model_options);
-    const measurement::FrfData data = measurement::ReadMeasurement(recipe.measurement);
+    const measurement::FrfData data = ReadMeasurementFor(recipe.measurement, o->geometry, spec);
     if (!recipe.space_given) recipe.comparison.space = ResolveComparisonSpace("", data);
     const compare::Comparison comparison = compare::Comparison::Create(spec, data, recipe.comparison);
     const std::vector<model::ParameterInfo> params = model::MatchParameters(spec, recipe.params);

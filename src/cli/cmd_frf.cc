@@ -27,6 +27,7 @@ struct FrfOptions {
   std::string quantity;
   std::string method = "auto";
   std::string measurement;
+  std::string geometry;
   double fmin_hz = 1.0;
   double fmax_hz = 2000.0;
   int points = 500;
@@ -135,6 +136,7 @@ void RegisterFrfCommand(CLI::App& app) {
   command->add_option("--points", o->points, "number of frequencies")->check(CLI::Range(1, 10000000));
   command->add_option("--method", o->method, "evaluation path: auto | modal | direct")
       ->check(CLI::IsMember({"auto", "modal", "direct"}));
+  command->add_option("--geometry", o->geometry, kGeometryHelp);
   command->add_option("--measurement", o->measurement,
                       "evaluate at this measurement's frequencies, for its channels (sensors and impacts)");
   command->callback([o] {
@@ -151,7 +153,7 @@ void RegisterFrfCommand(CLI::App& app) {
     response::ResponseQuantity quantity = response::ResponseQuantity::kAccelerance;
     std::string io_label = o->io;
     if (!o->measurement.empty()) {
-      const measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
+      const measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
       std::vector<model::InputSpec> inputs;
       std::vector<model::OutputSpec> outputs;
       for (const auto& channel : data.outputs) {

@@ -29,6 +29,7 @@ void RegisterLoopCommand(CLI::App& app) {
     CommonOptions common;
     std::string measurement, out, out_dir;
     std::string space;
+    std::string geometry;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -41,6 +42,7 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--out", o->out, "write the final model file (TOML) here")->required();
   command->add_option("--out-dir", o->out_dir,
                       "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
+  command->add_option("--geometry", o->geometry, kGeometryHelp);
   command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted in every step (comma-separated patterns)")
@@ -60,7 +62,7 @@ void RegisterLoopCommand(CLI::App& app) {
     }
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     const model::ModelSpec spec = LoadModelFromOptions(o->common);
-    const measurement::FrfData data = measurement::ReadMeasurement(o->measurement);
+    const measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
     diagnose::LoopOptions options;
     options.diagnose.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;

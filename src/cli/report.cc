@@ -1,5 +1,7 @@
 #include "report.h"
 
+#include "stagefit/measurement/measurement_file.h"
+
 #include <cstdio>
 
 #include "stagefit/common/atomic_file.h"
@@ -18,6 +20,14 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options) {
 
 std::string ModelSource(const CommonOptions& options) {
   return options.model_path.empty() ? "<embedded micro-station>" : options.model_path;
+}
+
+measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec) {
+  measurement::MeasurementReadOptions options;
+  options.geometry = geometry;
+  const int frame = model::FindFrame(spec, spec.compliance_frame);
+  if (frame >= 0) options.uff.node_body = spec.frames[frame].body;
+  return measurement::ReadMeasurement(path, options);
 }
 
 compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const measurement::FrfData& data) {

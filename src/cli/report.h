@@ -18,6 +18,15 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
 /// "<embedded micro-station>" or the --model path, for messages.
 std::string ModelSource(const CommonOptions& options);
 
+/// The measurement of a command: `--geometry FILE.csv` (when given) over the file's own geometry; a UFF
+/// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame.
+measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec);
+
+/// Help text of the shared --geometry option.
+inline constexpr const char* kGeometryHelp =
+    "geometry CSV of the measurement's channels (kind,name,body,x,y,z,nx,ny,nz), over the file's own; default: "
+    "<stem>.geometry.csv beside a .uff or .mat file, else the file's (UFF: node coordinates of datasets 15/2411)";
+
 /// The comparison space of `--space VALUE`, or when VALUE is empty the one the measurement's geometry
 /// calls for (compare::ChooseDefaultSpace), printed with its reason.
 compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const measurement::FrfData& data);

@@ -128,7 +128,7 @@ struct Point {
   int line;
 };
 
-void ReadSidecar(const fs::path& sidecar, FrfData* data, bool require_geometry) {
+void ReadSidecar(const fs::path& sidecar, FrfData* data, bool require_geometry, const std::string& of = "the CSV") {
   const std::string content = ReadFile(sidecar, "CSV geometry file");
   const LineError err(sidecar.string());
   std::map<std::string, int> outputs, inputs;
@@ -158,13 +158,13 @@ void ReadSidecar(const fs::path& sidecar, FrfData* data, bool require_geometry) 
     ChannelGeometry* channel = nullptr;
     if (kind == "sensor") {
       auto it = outputs.find(name);
-      if (it == outputs.end()) err.Fail(line_no, "sensor '" + name + "' is not an output of the CSV");
+      if (it == outputs.end()) err.Fail(line_no, "sensor '" + name + "' is not an output of " + of);
       if (seen_out[it->second]) err.Fail(line_no, "sensor '" + name + "' is listed twice");
       seen_out[it->second] = true;
       channel = &data->outputs[it->second];
     } else if (kind == "impact") {
       auto it = inputs.find(name);
-      if (it == inputs.end()) err.Fail(line_no, "impact '" + name + "' is not an input of the CSV");
+      if (it == inputs.end()) err.Fail(line_no, "impact '" + name + "' is not an input of " + of);
       if (seen_in[it->second]) err.Fail(line_no, "impact '" + name + "' is listed twice");
       seen_in[it->second] = true;
       channel = &data->inputs[it->second];
@@ -201,18 +201,28 @@ void ReadSidecar(const fs::path& sidecar, FrfData* data, bool require_geometry) 
   for (int i = 0; i < data->num_outputs(); ++i) {
     if (!seen_out[i]) {
       throw InputError("CSV geometry file '" + sidecar.string() + "': output '" +
-                       data->outputs[i].name + "' of the CSV has no 'sensor' row (missing geometry)");
+                       data->outputs[i].name + "' of " + of + " has no 'sensor' row (missing geometry)");
     }
   }
   for (int j = 0; j < data->num_inputs(); ++j) {
     if (!seen_in[j]) {
       throw InputError("CSV geometry file '" + sidecar.string() + "': input '" +
-                       data->inputs[j].name + "' of the CSV has no 'impact' row (missing geometry)");
+                       data->inputs[j].name + "' of " + of + " has no 'impact' row (missing geometry)");
     }
   }
 }
 
 }  // namespace
+
+void ApplyGeometryFile(const fs::path& geometry_csv, FrfData* data, bool require_geometry) {
+  std::error_code ec;
+  if (!fs::exists(geometry_csv, ec)) {
+    throw InputError("geometry file '" + geometry_csv.string() + "' does not exist, expected a CSV with the header "
+                     "kind,name,body,x,y,z,nx,ny,nz");
+  }
+  ReadSidecar(geometry_csv, data, require_geometry, "the measurement '" + data->source + "'");
+  Validate(*data);
+}
 
 fs::path GeometrySidecarPath(const fs::path& csv_path) {
   fs::path p = csv_path;

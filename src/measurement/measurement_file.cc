@@ -20,27 +20,40 @@ MeasurementFormat MeasurementFormatOf(const std::filesystem::path& path) {
 }
 
 FrfData ReadMeasurement(const std::filesystem::path& path, const MeasurementReadOptions& options) {
-  switch (MeasurementFormatOf(path)) {
+  const MeasurementFormat format = MeasurementFormatOf(path);
+  // The geometry: --geometry, else a sidecar beside a .uff / .mat, else what the file holds.
+  std::filesystem::path geometry = options.geometry;
+  if (geometry.empty() && format != MeasurementFormat::kCsv) {
+    const std::filesystem::path sidecar = GeometrySidecarPath(path);
+    std::error_code ec;
+    if (std::filesystem::exists(sidecar, ec)) geometry = sidecar;
+  }
+  const bool file_geometry_required = options.require_geometry && geometry.empty();
+  FrfData data;
+  switch (format) {
     case MeasurementFormat::kMat:
-      return ReadMatMeasurement(path, options.require_geometry);
+      data = ReadMatMeasurement(path, file_geometry_required);
+      break;
     case MeasurementFormat::kCsv:
-      return ReadCsvMeasurement(path, options.require_geometry);
-    case MeasurementFormat::kUff: {
-      FrfData data = ReadUffMeasurement(path, options.uff);
-      if (options.require_geometry) {
-        for (const auto* channels : {&data.outputs, &data.inputs}) {
-          for (const ChannelGeometry& c : *channels) {
-            if (!c.has_geometry()) {
-              throw InputError("UFF file '" + path.string() + "': missing geometry for channel '" +
-                               c.name + "' (UFF 58 holds node numbers only; give node locations)");
-            }
-          }
+      data = ReadCsvMeasurement(path, file_geometry_required);
+      break;
+    case MeasurementFormat::kUff:
+      data = ReadUffMeasurement(path, options.uff);
+      break;
+  }
+  if (!geometry.empty()) ApplyGeometryFile(geometry, &data, options.require_geometry);
+  if (options.require_geometry) {
+    for (const auto* channels : {&data.outputs, &data.inputs}) {
+      for (const ChannelGeometry& c : *channels) {
+        if (!c.has_geometry()) {
+          throw InputError("measurement '" + path.string() + "': missing geometry for channel '" + c.name +
+                           "' (give it with --geometry FILE.csv, a .geometry.csv beside the file, or, in a UFF "
+                           "file, node coordinates in datasets 15 / 2411)");
         }
       }
-      return data;
     }
   }
-  STAGEFIT_ASSERT(false, "unhandled measurement format");
+  return data;
 }
 
 void WriteMeasurement(const std::filesystem::path& path, const FrfData& data,

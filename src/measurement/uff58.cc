@@ -661,9 +661,88 @@ void CheckWritable(const UffRecord& r, std::size_t index) {
 
 }  // namespace
 
-std::vector<UffRecord> ParseUff58(std::string_view content, const std::string& source) {
+namespace {
+
+// Numbers of an ASCII node or units record: blank-separated, Fortran D exponents allowed.
+std::vector<double> RecordNumbers(Cursor& cursor, std::string_view line, std::size_t expected, const std::string& what) {
+  std::vector<double> values;
+  std::string text(line);
+  for (char& c : text) {
+    if (c == 'D' || c == 'd') c = 'E';
+  }
+  std::istringstream in(text);
+  std::string token;
+  while (in >> token) {
+    char* end = nullptr;
+    const double v = std::strtod(token.c_str(), &end);
+    if (end == token.c_str() || *end != '\0' || !std::isfinite(v)) {
+      cursor.Fail(what + ": '" + Printable(token) + "' is not a finite number");
+    }
+    values.push_back(v);
+  }
+  if (values.size() < expected) {
+    cursor.Fail(what + ": " + std::to_string(values.size()) + " numbers, expected " + std::to_string(expected));
+  }
+  return values;
+}
+
+// Datasets 15 (one line per node: label, 3 coordinate systems / colour, x y z) and 2411 (two lines per
+// node: label, 3 integers; x y z in D25.16). Coordinates in file units.
+void ParseNodes(Cursor& cursor, long long number, std::map<int, Eigen::Vector3d>* nodes) {
+  const std::string what = "dataset " + std::to_string(number);
+  while (true) {
+    const auto line = cursor.NextLine();
+    if (!line) cursor.Fail(what + " without its closing '-1' delimiter (truncated file)");
+    if (IsDelimiter(*line)) return;
+    if (Trim(*line).empty()) continue;
+    std::vector<double> v;
+    Eigen::Vector3d x;
+    if (number == 15) {
+      v = RecordNumbers(cursor, *line, 7, what + " node line");
+      x = Eigen::Vector3d(v[4], v[5], v[6]);
+    } else {
+      v = RecordNumbers(cursor, *line, 4, what + " record 1 (node label, coordinate systems, colour)");
+      const auto coordinates = cursor.NextLine();
+      if (!coordinates) cursor.Fail(what + ": the file ends after a node's record 1, expected its coordinates");
+      const std::vector<double> c = RecordNumbers(cursor, *coordinates, 3, what + " record 2 (x y z)");
+      x = Eigen::Vector3d(c[0], c[1], c[2]);
+    }
+    if (v[0] != std::floor(v[0]) || v[0] < 0 || v[0] > 2e9) cursor.Fail(what + ": node label " + std::to_string(v[0]) + ", expected an integer >= 0");
+    (*nodes)[static_cast<int>(v[0])] = x;
+  }
+}
+
+// Dataset 164: record 1 units code, description, temperature mode; record 2 length, force and
+// temperature factors; record 3 temperature offset.
+void ParseUnits(Cursor& cursor, UffFile* file) {
+  const auto r1 = cursor.NextLine();
+  if (!r1) cursor.Fail("dataset 164 without its closing '-1' delimiter (truncated file)");
+  if (IsDelimiter(*r1)) return;  // an empty units dataset: SI
+  const auto r2 = cursor.NextLine();
+  if (!r2) cursor.Fail("dataset 164 ends early, expected its unit factors (length, force, temperature)");
+  if (IsDelimiter(*r2)) return;  // a units code without factors: SI (factors 1)
+  file->units_description = std::string(Trim(r1->size() > 10 ? r1->substr(10, std::min<std::size_t>(20, r1->size() - 10)) : std::string_view()));
+  const std::vector<double> f = RecordNumbers(cursor, *r2, 3, "dataset 164 record 2 (length, force, temperature factors)");
+  if (!(f[0] > 0.0) || !(f[1] > 0.0)) {
+    cursor.Fail("dataset 164 record 2: length factor " + std::to_string(f[0]) + ", force factor " + std::to_string(f[1]) +
+                ", expected factors > 0");
+  }
+  file->length_factor = f[0];
+  file->force_factor = f[1];
+  file->has_units = true;
+  while (const auto line = cursor.NextLine()) {
+    if (IsDelimiter(*line)) return;
+  }
+  cursor.Fail("dataset 164 without its closing '-1' delimiter (truncated file)");
+}
+
+}  // namespace
+
+UffFile ParseUffFile(std::string_view content, const std::string& source) {
   Cursor cursor(content, source);
-  std::vector<UffRecord> records;
+  UffFile file;
+  std::vector<UffRecord>& records = file.records;
+  std::map<int, Eigen::Vector3d> nodes;
   bool any_dataset = false;
   while (true) {
     std::optional<std::string_view> line;
@@ -685,6 +764,14 @@ std::vector<UffRecord> ParseUff58(std::string_view content, const std::string& s
       cursor.Fail("'" + Printable(*number_line) + "', expected a dataset number such as 58 or 58b");
     }
     any_dataset = true;
+    if ((number == 15 || number == 2411) && !header.binary) {
+      ParseNodes(cursor, number, &nodes);
+      continue;
+    }
+    if (number == 164 && !header.binary) {
+      ParseUnits(cursor, &file);
+      continue;
+    }
     if (number != 58) {
       SkipDataset(cursor, header);
       continue;
@@ -696,7 +783,17 @@ std::vector<UffRecord> ParseUff58(std::string_view content, const std::string& s
                      (any_dataset ? std::string("holds no dataset 58 (function at nodal DOF)")
                                   : std::string("is empty, expected at least one dataset 58")));
   }
-  return records;
+  for (const auto& [label, x] : nodes) file.nodes_m[label] = x / file.length_factor;
+  return file;
+}
+
+std::vector<UffRecord> ParseUff58(std::string_view content, const std::string& source) {
+  return ParseUffFile(content, source).records;
+}
+
+UffFile ReadUffFile(const fs::path& path) {
+  const std::string content = ReadFile(path);
+  return ParseUffFile(content, path.string());
 }
 
 std::vector<UffRecord> ReadUff58(const fs::path& path) {
@@ -828,6 +925,89 @@ std::string Lower(std::string s) {
   return out;
 }
 
+// A units label as written by acquisition systems, lower case, without blanks and parentheses, with
+// "²" and "s2" written "^2".
+std::string NormalisedUnits(const std::string& label) {
+  std::string u = Lower(label);
+  std::string out;
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    if (u[i] == '(' || u[i] == ')') continue;
+    if (u.compare(i, 2, "\xC2\xB2") == 0) {
+      out += "^2";
+      ++i;
+      continue;
+    }
+    if (u.compare(i, 2, "\xC2\xB5") == 0 || u.compare(i, 2, "\xCE\xBC") == 0) {  // micro sign, mu
+      out += 'u';
+      ++i;
+      continue;
+    }
+    out += u[i];
+  }
+  for (const char* from : {"s2", "sec^2", "sec2"}) {
+    const std::size_t at = out.find(from);
+    if (at != std::string::npos && at + std::strlen(from) == out.size()) out.replace(at, std::strlen(from), "s^2");
+  }
+  const std::size_t slash_s2 = out.find("/s2/");
+  if (slash_s2 != std::string::npos) out.replace(slash_s2, 4, "/s^2/");
+  return out;
+}
+
+struct MotionUnit {
+  FrfQuantity quantity;
+  double to_si;  // SI value per unit
+};
+
+// The motion part of a units label ("g", "mm/s^2", "in/s", "um", ...).
+std::optional<MotionUnit> ParseMotionUnit(const std::string& u) {
+  static const std::pair<const char*, MotionUnit> kUnits[] = {
+      {"g", {FrfQuantity::kAccelerance, 9.80665}},       {"m/s^2", {FrfQuantity::kAccelerance, 1.0}},
+      {"mm/s^2", {FrfQuantity::kAccelerance, 1e-3}},     {"in/s^2", {FrfQuantity::kAccelerance, 0.0254}},
+      {"ft/s^2", {FrfQuantity::kAccelerance, 0.3048}},   {"m/s/s", {FrfQuantity::kAccelerance, 1.0}},
+      {"m/s", {FrfQuantity::kMobility, 1.0}},            {"mm/s", {FrfQuantity::kMobility, 1e-3}},
+      {"in/s", {FrfQuantity::kMobility, 0.0254}},        {"m", {FrfQuantity::kReceptance, 1.0}},
+      {"mm", {FrfQuantity::kReceptance, 1e-3}},          {"um", {FrfQuantity::kReceptance, 1e-6}},
+      {"in", {FrfQuantity::kReceptance, 0.0254}},
+  };
+  for (const auto& [name, unit] : kUnits) {
+    if (u == name) return unit;
+  }
+  return std::nullopt;
+}
+
+// Newtons per unit of a force label, or nullopt.
+std::optional<double> ParseForceUnit(const std::string& u) {
+  if (u == "n") return 1.0;
+  if (u == "kn") return 1e3;
+  if (u == "lbf" || u == "lb") return 4.4482216152605;
+  return std::nullopt;
+}
+
+// A record's FRF units from its labels: the ordinate's label is "<motion>" or "<motion>/<force>"; the
+// force may also be the denominator record's label.
+struct LabelUnits {
+  std::optional<MotionUnit> motion;
+  std::optional<double> newtons;
+};
+LabelUnits ParseLabels(const UffRecord& r) {
+  LabelUnits out;
+  const std::string u = NormalisedUnits(r.ordinate.units_label);
+  out.motion = ParseMotionUnit(u);
+  if (!out.motion) {
+    const std::size_t slash = u.rfind('/');
+    if (slash != std::string::npos) {
+      const auto force = ParseForceUnit(u.substr(slash + 1));
+      const auto motion = ParseMotionUnit(u.substr(0, slash));
+      if (force && motion) {
+        out.motion = motion;
+        out.newtons = force;
+      }
+    }
+  }
+  if (!out.newtons) out.newtons = ParseForceUnit(NormalisedUnits(r.ordinate_denominator.units_label));
+  return out;
+}
+
 std::optional<FrfQuantity> RecogniseQuantity(const UffRecord& r) {
   switch (r.ordinate.specific_data_type) {
     case uff_data_type::kAcceleration:
@@ -839,6 +1019,7 @@ std::optional<FrfQuantity> RecogniseQuantity(const UffRecord& r) {
     default:
       break;
   }
+  if (const auto labels = ParseLabels(r); labels.motion) return labels.motion->quantity;
   const std::string u = Lower(r.ordinate.units_label);
   for (const char* p : {"m/s^2", "m/s2", "m/s\xC2\xB2", "m/s/s", "m/(s^2", "/s^2", "/s\xC2\xB2"}) {
     if (u.find(p) != std::string::npos) return FrfQuantity::kAccelerance;
@@ -867,6 +1048,39 @@ bool ChannelNamesFromId(const UffRecord& r, std::string* output, std::string* in
 }
 
 }  // namespace
+
+std::optional<std::pair<FrfQuantity, double>> UffMotionUnitToSi(const std::string& label) {
+  const auto unit = ParseMotionUnit(NormalisedUnits(label));
+  if (!unit) return std::nullopt;
+  return std::make_pair(unit->quantity, unit->to_si);
+}
+
+std::optional<double> UffForceUnitToNewtons(const std::string& label) { return ParseForceUnit(NormalisedUnits(label)); }
+
+double UffFrfScaleToSi(const UffRecord& r, const UffFile& file, std::string* how) {
+  const LabelUnits labels = ParseLabels(r);
+  char text[160];
+  if (labels.motion) {
+    const double newtons = labels.newtons.value_or(1.0);
+    const double factor = labels.motion->to_si / newtons;
+    std::snprintf(text, sizeof text, "units labels '%s' / '%s': x %.10g", r.ordinate.units_label.c_str(),
+                  r.ordinate_denominator.units_label.c_str(), factor);
+    if (how) *how = text;
+    return factor;
+  }
+  if (file.has_units && (file.length_factor != 1.0 || file.force_factor != 1.0)) {
+    // value_file / factor^exponent = value_SI, per axis; the FRF is ordinate / denominator.
+    const int length = r.ordinate.length_unit_exponent - r.ordinate_denominator.length_unit_exponent;
+    const int force = r.ordinate.force_unit_exponent - r.ordinate_denominator.force_unit_exponent;
+    const double factor = std::pow(file.length_factor, -length) * std::pow(file.force_factor, -force);
+    std::snprintf(text, sizeof text, "dataset 164 (%s): length^%d force^%d: x %.10g", file.units_description.c_str(),
+                  length, force, factor);
+    if (how) *how = text;
+    return factor;
+  }
+  if (how) *how = "SI assumed";
+  return 1.0;
+}
 
 FrfData ConvertUffToFrfData(const std::vector<UffRecord>& records, const std::string& source,
                             const UffFrfOptions& options) {
@@ -959,7 +1173,8 @@ FrfData ConvertUffToFrfData(const std::vector<UffRecord>& records, const std::st
                        "first is dataset number " + std::to_string(seen[o][j] + 1) + ")");
     }
     seen[o][j] = static_cast<int>(i);
-    for (int k = 0; k < nf; ++k) data.frf[k](o, j) = r.complex_y[k + skip];
+    const double scale = i < options.scale_to_si.size() ? options.scale_to_si[i] : 1.0;
+    for (int k = 0; k < nf; ++k) data.frf[k](o, j) = scale * r.complex_y[k + skip];
   }
   for (int o = 0; o < nout; ++o) {
     for (int j = 0; j < nin; ++j) {
@@ -1006,14 +1221,20 @@ FrfData ConvertUffToFrfData(const std::vector<UffRecord>& records, const std::st
       c.name = names[d];
       c.direction_W = DirectionVector(d.second);
       auto it = options.nodes.find(d.first);
-      if (it != options.nodes.end()) {
+      std::optional<UffNodeLocation> from_file;
+      if (it == options.nodes.end() && !options.node_body.empty()) {
+        const auto f = options.file_nodes_m.find(d.first);
+        if (f != options.file_nodes_m.end()) from_file = UffNodeLocation{options.node_body, f->second};
+      }
+      if (it != options.nodes.end() || from_file) {
+        const UffNodeLocation& location = from_file ? *from_file : it->second;
         if (d.second == 0) {
           throw InputError(where + ": node " + std::to_string(d.first) +
                            " has a location but channel '" + c.name +
                            "' has direction code 0 (scalar), expected +-1..3");
         }
-        c.body = it->second.body;
-        c.position_W = it->second.position_W;
+        c.body = location.body;
+        c.position_W = location.position_W;
       }
       channels->push_back(c);
     }
@@ -1107,7 +1328,13 @@ std::vector<UffRecord> ConvertFrfDataToUff(const FrfData& data) {
 }
 
 FrfData ReadUffMeasurement(const fs::path& path, const UffFrfOptions& options) {
-  return ConvertUffToFrfData(ReadUff58(path), path.string(), options);
+  const UffFile file = ReadUffFile(path);
+  UffFrfOptions with_file = options;
+  if (with_file.file_nodes_m.empty()) with_file.file_nodes_m = file.nodes_m;
+  if (with_file.scale_to_si.empty()) {
+    for (const UffRecord& r : file.records) with_file.scale_to_si.push_back(UffFrfScaleToSi(r, file));
+  }
+  return ConvertUffToFrfData(file.records, path.string(), with_file);
 }
 
 void WriteUffMeasurement(const fs::path& path, const FrfData& data, UffEncoding encoding) {

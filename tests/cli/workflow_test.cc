@@ -3,10 +3,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "cli_test_util.h"
+#include "stagefit/measurement/uff_time.h"
+#include "stagefit/measurement/uff58.h"
+#include "stagefit/measurement/raw_hammer_file.h"
+#include "stagefit/measurement/measurement_file.h"
 
 namespace stagefit {
 namespace {
@@ -178,6 +183,48 @@ TEST(WholeStackExample, CompareFitAndDiagnoseWorkInTheBodiesSpace) {
   EXPECT_TRUE(d["where"]["rigid_consistency"].is_object()) << diagnose.output;  // per body
   auto raw = RunStagefit("compare --measurement " + m + " --space compliance");
   EXPECT_EQ(raw.exit_code, 2) << raw.output;  // one frame cannot hold sensors on five bodies
+}
+
+// UFF files as acquisition systems write them: the shipped measurement as UFF 58b FRFs with its node
+// coordinates in dataset 2411 (millimetres, dataset 164) compares exactly as the .mat; its raw time
+// data as UFF 58 time records estimate the same FRFs as the raw .mat.
+TEST(UffFiles, NodesFromDataset2411AndTimeRecordsRunThroughCompareAndEstimate) {
+  auto dir = TempDir("uff-cli");
+  const auto frf = measurement::ReadMeasurement(kExample + "frf.mat");
+  std::string nodes = "    -1\n   164\n         2  mm (milli newton)   2\n"
+                      "  1.00000000000000000D+03  1.00000000000000000D+00  1.00000000000000000D+00\n"
+                      "  2.73150000000000000D+02\n    -1\n    -1\n  2411\n";
+  char line[200];
+  auto add = [&](int node, const Eigen::Vector3d& p) {
+    std::snprintf(line, sizeof line, "%10d%10d%10d%10d\n%25.16E%25.16E%25.16E\n", node, 1, 1, 11, 1e3 * p.x(),
+                  1e3 * p.y(), 1e3 * p.z());
+    nodes += line;
+  };
+  for (int o = 0; o < frf.num_outputs(); ++o) add(1 + o, frf.outputs[o].position_W);
+  for (int j = 0; j < frf.num_inputs(); ++j) add(1001 + j, frf.inputs[j].position_W);
+  nodes += "    -1\n";
+  std::ofstream(dir / "frf.uff", std::ios::binary)
+      << nodes << measurement::FormatUff58(measurement::ConvertFrfDataToUff(frf), measurement::UffEncoding::kBinaryLittleEndian);
+  auto mat = RunStagefit("compare --measurement " + kExample + "frf.mat --report " + (dir / "mat.json").string());
+  auto uff = RunStagefit("compare --measurement " + (dir / "frf.uff").string() + " --report " + (dir / "uff.json").string());
+  ASSERT_EQ(uff.exit_code, 0) << uff.output;
+  EXPECT_NEAR(ReadJson(dir / "uff.json")["error"].get<double>(), ReadJson(dir / "mat.json")["error"].get<double>(), 1e-9);
+
+  const auto raw = measurement::ReadRawHammerFile(kExample + "raw.mat");
+  measurement::WriteUff58(dir / "raw.uff", measurement::ConvertRawHammerToUff(raw), measurement::UffEncoding::kBinaryLittleEndian);
+  auto from_mat = RunStagefit("estimate " + kExample + "raw.mat --out " + (dir / "est_mat.mat").string());
+  auto from_uff = RunStagefit("estimate " + (dir / "raw.uff").string() + " --out " + (dir / "est_uff.mat").string());
+  ASSERT_EQ(from_uff.exit_code, 0) << from_uff.output;
+  const auto a = measurement::ReadMeasurement(dir / "est_mat.mat"), b = measurement::ReadMeasurement(dir / "est_uff.mat");
+  ASSERT_EQ(a.num_frequencies(), b.num_frequencies());
+  for (int k = 0; k < a.num_frequencies(); ++k) EXPECT_LT((a.frf[k] - b.frf[k]).cwiseAbs().maxCoeff(), 1e-12 * a.frf[k].cwiseAbs().maxCoeff());
+  auto bad = RunStagefit("estimate " + (dir / "raw.uff").string() + " --force 9999+X --out " + (dir / "x.mat").string());
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("no force record"), std::string::npos) << bad.output;
+  auto missing = RunStagefit("compare --measurement " + (dir / "frf.uff").string() + " --geometry " +
+                             (dir / "none.csv").string());
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(missing.output.find("none.csv' does not exist"), std::string::npos) << missing.output;
 }
 
 TEST(FitCommand, RefusesToWriteOverItsInput) {

@@ -53,6 +53,12 @@ FrfData ReadCsvMeasurement(const std::filesystem::path& path, bool require_geome
 /// Throws InputError when Validate(data) fails or a file cannot be written.
 void WriteCsvMeasurement(const std::filesystem::path& path, const FrfData& data);
 
+/// Gives the channels of `data` the geometry of a geometry CSV (the sidecar layout above: every output
+/// needs a 'sensor' row and every input an 'impact' row, named as the channels), replacing what they
+/// had. For measurements of any format: `--geometry FILE.csv`, or "<stem>.geometry.csv" beside a .uff
+/// or .mat file. Throws InputError naming the file, the line and the problem.
+void ApplyGeometryFile(const std::filesystem::path& geometry_csv, FrfData* data, bool require_geometry = false);
+
 /// The sidecar of an FRF CSV of `quantity`: the quantity and the unit of every column.
 CsvMeta FrfCsvMeta(FrfQuantity quantity, bool with_coherence = false);
 

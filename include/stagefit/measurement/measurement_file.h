@@ -26,6 +26,11 @@ struct MeasurementReadOptions {
   /// files carry node numbers only: their channels get geometry from `uff.nodes`.
   bool require_geometry = false;
   UffFrfOptions uff;  ///< quantity override and node locations for UFF files
+  /// A geometry CSV (kind,name,body,x,y,z,nx,ny,nz) for the channels, over any geometry the file or its
+  /// sidecar gives (`--geometry`). Empty: a .uff or .mat file takes "<stem>.geometry.csv" beside it when
+  /// there is one (a .csv reads its own sidecar), else the geometry in the file (UFF: node coordinates of
+  /// datasets 15 / 2411 on `uff.node_body`).
+  std::filesystem::path geometry;
 };
 
 /// Reads a measurement, dispatching on the extension; the result has passed Validate().

@@ -26,8 +26,11 @@
 // With uneven spacing each point carries its abscissa (x, y) or (x, re, im); single-precision
 // binary data stores the abscissa in single precision too.
 //
-// Units: the values are taken as they are in the file. The unit system of a UFF file lives in
-// dataset 164, which is not read; SI is assumed (the axis units labels are kept as text).
+// Units (ConvertUffToFrfData): FRF values are converted to SI from the units labels of records 9 and
+// 10 (g = 9.80665 m/s^2, mm/s^2, in/s^2, ft/s^2, mm/s, in/s, mm, um, in; lbf, kN, N), or, when the
+// labels name no unit, from the unit exponents of records 9-10 and the factors of dataset 164 (file
+// value / factor = SI value). Node coordinates come from datasets 15 and 2411, in the units of
+// dataset 164 (UffFile, ReadUffFile).
 
 #include <Eigen/Core>
 
@@ -155,6 +158,35 @@ std::string FormatUff58(const std::vector<UffRecord>& records, UffEncoding encod
 void WriteUff58(const std::filesystem::path& path, const std::vector<UffRecord>& records,
                 UffEncoding encoding);
 
+/// What a universal file holds besides its datasets 58: the node coordinates of datasets 15 and 2411
+/// (converted to m with dataset 164's length factor) and the unit factors of dataset 164.
+struct UffFile {
+  std::vector<UffRecord> records;                ///< datasets 58 / 58b in file order
+  std::map<int, Eigen::Vector3d> nodes_m;         ///< node label -> coordinates, m
+  /// Dataset 164: file units per SI unit (value_file / factor = value_SI); 1 when absent.
+  double length_factor = 1.0;
+  double force_factor = 1.0;
+  bool has_units = false;                          ///< a dataset 164 was read
+  std::string units_description;                   ///< dataset 164 record 1, e.g. "SI: Meter (newton)"
+};
+
+/// Parses every dataset 58/58b, 15, 2411 and 164 of a universal file (others are skipped). Throws
+/// InputError as ParseUff58 does, and for a node or units record that is not numbers (naming the
+/// dataset, the line and the field).
+UffFile ParseUffFile(std::string_view content, const std::string& source);
+UffFile ReadUffFile(const std::filesystem::path& path);
+
+/// The factor that converts a UFF FRF record's values to SI (header: from its units labels, else from
+/// its unit exponents and the file's dataset 164 factors); 1 when nothing says otherwise. `how`
+/// receives a short description ("g/N: x 9.80665") when not null.
+double UffFrfScaleToSi(const UffRecord& record, const UffFile& file, std::string* how = nullptr);
+
+/// A motion units label ("g", "m/s^2", "mm/s2", "in/s", "um", ...; blanks, parentheses and case
+/// ignored): the quantity it measures and the SI value of one unit; nullopt when it names none of them.
+std::optional<std::pair<FrfQuantity, double>> UffMotionUnitToSi(const std::string& label);
+/// A force units label ("N", "kN", "lbf"): newtons per unit; nullopt otherwise.
+std::optional<double> UffForceUnitToNewtons(const std::string& label);
+
 /// Where a UFF node sits (UFF 58 carries node numbers only; positions come from elsewhere).
 struct UffNodeLocation {
   std::string body;                                      ///< body carrying the node
@@ -169,6 +201,12 @@ struct UffFrfOptions {
   std::optional<FrfQuantity> quantity;
   /// Node number -> location; channels on listed nodes get geometry, the others have none.
   std::map<int, UffNodeLocation> nodes;
+  /// Nodes of datasets 15 / 2411 (ReadUffMeasurement fills it from the file); a node listed here but not
+  /// in `nodes` puts its channels on `node_body`. Empty `node_body`: such nodes give no geometry.
+  std::map<int, Eigen::Vector3d> file_nodes_m;
+  std::string node_body;
+  /// Factors to SI per FRF record (UffFrfScaleToSi); empty = 1 for every record.
+  std::vector<double> scale_to_si;
   /// Drops a first point at exactly 0 Hz (the DC line of an analyser's FFT, where an FRF of a
   /// hammer test carries no information and the frequency would fail Validate()).
   bool drop_zero_frequency = true;
