@@ -52,16 +52,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;
     if (o->fmax > 0) options.comparison.fmax_hz = o->fmax;
-    auto split = [](const std::string& text) {
-      std::vector<std::string> out;
-      std::stringstream s(text);
-      for (std::string item; std::getline(s, item, ',');) {
-        if (!item.empty()) out.push_back(item);
-      }
-      return out;
-    };
-    options.params = split(o->params);
-    options.effects = split(o->effects);
+    options.params = SplitCommaList(o->params);
+    options.effects = SplitCommaList(o->effects);
     for (const auto& e : options.effects) model::FindEffectDefinition(e);
     if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "diagnose: " << line << std::endl; };
     diagnose::DiagnoseSummary summary = diagnose::Diagnose(spec, data, options);

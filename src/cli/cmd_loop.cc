@@ -67,16 +67,8 @@ void RegisterLoopCommand(CLI::App& app) {
     options.diagnose.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;
     if (o->fmax > 0) options.diagnose.comparison.fmax_hz = o->fmax;
-    auto split = [](const std::string& text) {
-      std::vector<std::string> out;
-      std::stringstream s(text);
-      for (std::string item; std::getline(s, item, ',');) {
-        if (!item.empty()) out.push_back(item);
-      }
-      return out;
-    };
-    options.diagnose.params = split(o->params);
-    options.diagnose.effects = split(o->effects);
+    options.diagnose.params = SplitCommaList(o->params);
+    options.diagnose.effects = SplitCommaList(o->effects);
     for (const auto& e : options.diagnose.effects) model::FindEffectDefinition(e);
     options.max_rounds = o->max_rounds;
     if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "loop: " << line << std::endl; };

@@ -3,6 +3,7 @@
 #include "stagefit/measurement/measurement_file.h"
 
 #include <cstdio>
+#include <sstream>
 
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
@@ -28,6 +29,15 @@ measurement::FrfData ReadMeasurementFor(const std::string& path, const std::stri
   const int frame = model::FindFrame(spec, spec.compliance_frame);
   if (frame >= 0) options.uff.node_body = spec.frames[frame].body;
   return measurement::ReadMeasurement(path, options);
+}
+
+std::vector<std::string> SplitCommaList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream s(text);
+  for (std::string item; std::getline(s, item, ',');) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
 }
 
 compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const measurement::FrfData& data) {

@@ -22,6 +22,9 @@ std::string ModelSource(const CommonOptions& options);
 /// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame.
 measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec);
 
+/// The non-empty items of a comma-separated list ("payload,extra-body").
+std::vector<std::string> SplitCommaList(const std::string& text);
+
 /// Help text of the shared --geometry option.
 inline constexpr const char* kGeometryHelp =
     "geometry CSV of the measurement's channels (kind,name,body,x,y,z,nx,ny,nz), over the file's own; default: "

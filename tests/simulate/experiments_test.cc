@@ -172,6 +172,26 @@ TEST(RunTomography, TheSpindleErrorAppearsAtThePointWhereItWasMeasured) {
   EXPECT_GT(rms(expected_x), 2.0 * rms(centred(measured.col(0))));  // the lever arm dominates
 }
 
+// Turning at 60 rpm with the default spindle error PSD, ground motion off: the radial error with the
+// error applied at the PoI height (the default reference) is the error itself, well below the one with
+// the same error imposed unchanged at the joint 0.4 m below, where the tilts' lever arm adds to it.
+TEST(RunTomography, RadialErrorWithTheSpindleErrorAppliedAtThePoiHeight) {
+  TomographyOptions o = ShortTomography();
+  o.ground_motion = false;
+  const model::ModelSpec spec = model::DefaultModelSpec();
+  auto radial_rms = [](const SimulationSummary& run) {
+    for (const auto& s : run.statistics) {
+      if (s.name == "radial") return s.rms;
+    }
+    return -1.0;
+  };
+  const double at_poi = radial_rms(RunTomography(spec, o));
+  o.spindle_error_reference_W = Eigen::Vector3d(0, 0, spec.joints[model::FindJoint(spec, "rz")].origin_W.z());
+  const double at_joint = radial_rms(RunTomography(spec, o));
+  EXPECT_GT(at_poi, 0.0);
+  EXPECT_LT(at_poi, 0.7 * at_joint) << "at the PoI " << at_poi << " m, at the joint " << at_joint << " m";
+}
+
 // The default spindle PSD is the shipped target table: read from the file it gives the same run.
 TEST(SpindleErrorPsdFromTable, TheShippedTargetIsTheDefault) {
   const auto table = disturbance::ReadCsvTable(std::string(STAGEFIT_SOURCE_DIR) + "/measurements/disturbance/spindle_target.csv");
