@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "stagefit/common/error.h"
 #include "stagefit/measurement/projection.h"
@@ -291,6 +292,17 @@ struct Checker {
         f.action = s.is_input ? "check the hammer's force channel polarity (or the impact direction in the geometry)"
                               : "check the sensor's wiring or mounting direction (or its direction in the geometry)";
         f.action += "; the data can be repaired by negating " + s.names[rev];
+        for (int c = 0; c < C; ++c)
+          if (c != rev && std::hypot(const_gain_re[c] + 1.0, const_gain_im[c]) < 0.25 &&
+              const_after_bad[c] < 1.5 * const_after_bad[rev] + 0.5)
+            f.alternatives.push_back({s.names[c]});
+        if (!f.alternatives.empty()) {
+          f.repairable = false;
+          std::string alt;
+          for (const auto& a : f.alternatives) alt += " or " + a[0];
+          f.evidence += "; reversing" + alt + " explains the data as well (symmetric layout), so the data cannot tell which";
+          f.action = "check the polarity of " + s.names[rev] + alt + " by hand (tap test)";
+        }
         out.push_back(f);
         for (auto& x : s.m) x.row(rev) *= -1.0;
         continue;
@@ -298,6 +310,7 @@ struct Checker {
       // Swapped pair.
       int si = -1, sk = -1;
       double swap_after = before_all;
+      std::vector<std::tuple<double, int, int>> swaps;
       for (int i = 0; i < C; ++i)
         for (int k = i + 1; k < C; ++k) {
           std::vector<Eigen::MatrixXcd> ms = s.m;
@@ -307,6 +320,7 @@ struct Checker {
             ns[q].row(i).swap(ns[q].row(k));
           }
           const double x = Excess(P, ms, ns, all);
+          swaps.emplace_back(x, i, k);
           if (x < swap_after) {
             swap_after = x;
             si = i;
@@ -327,6 +341,15 @@ struct Checker {
                      Format("%.1fx -> %.1fx the noise", before_all, swap_after);
         f.action = "check the cabling of " + s.names[si] + " and " + s.names[sk] +
                    " (or their order in the file); the data can be repaired by exchanging them";
+        for (const auto& [x, i, k] : swaps)
+          if ((i != si || k != sk) && x < 1.5 * swap_after + 0.5) f.alternatives.push_back({s.names[i], s.names[k]});
+        if (!f.alternatives.empty()) {
+          f.repairable = false;
+          std::string alt;
+          for (const auto& a : f.alternatives) alt += " or " + a[0] + " <-> " + a[1];
+          f.evidence += "; exchanging" + alt + " explains the data as well (symmetric layout), so the data cannot tell which";
+          f.action = "check the cabling of " + s.names[si] + " <-> " + s.names[sk] + alt + " by hand (tap test)";
+        }
         out.push_back(f);
         for (std::size_t q = 0; q < s.m.size(); ++q) {
           s.m[q].row(si).swap(s.m[q].row(sk));

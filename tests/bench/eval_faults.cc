@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   }
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const char* kinds[] = {"sound", "reversed", "swapped", "dead", "clipped", "local_resonance"};
-  int total[6] = {0}, named[6] = {0}, false_cases[6] = {0}, false_findings = 0, unobservable = 0, unobservable_named = 0;
+  int ambiguous[6] = {0}, total[6] = {0}, named[6] = {0}, false_cases[6] = {0}, false_findings = 0, unobservable = 0, unobservable_named = 0;
   for (int c = 0; c < cases; ++c) {
     const uint64_t seed = first_seed + c;
     std::mt19937_64 rng(seed * 7919 + 13);
@@ -78,11 +78,15 @@ int main(int argc, char** argv) {
     bool hit = false;
     int wrong = 0;
     for (const auto& f : result.findings) {
-      const bool match = k > 0 && f.kind == injected.kind && f.is_input == injected.is_input &&
-                         std::set<std::string>(f.channels.begin(), f.channels.end()) ==
-                             std::set<std::string>(injected.channels.begin(), injected.channels.end());
+      const std::set<std::string> truth(injected.channels.begin(), injected.channels.end());
+      const bool same_kind = k > 0 && f.kind == injected.kind && f.is_input == injected.is_input;
+      bool match = same_kind && std::set<std::string>(f.channels.begin(), f.channels.end()) == truth;
+      const bool unique = match && f.alternatives.empty();
+      for (const auto& a : f.alternatives)
+        if (same_kind && std::set<std::string>(a.begin(), a.end()) == truth) match = true;
       if (match) hit = true;
-      else ++wrong;
+      if (match && !unique) ++ambiguous[k];
+      if (!match) ++wrong;
     }
     if (hit) ++named[k];
     if (hit && !observable) ++unobservable_named;
@@ -95,10 +99,12 @@ int main(int argc, char** argv) {
       std::printf("\n%s", result.Report().c_str());
     }
   }
-  std::printf("\n%-16s %6s %8s %12s\n", "kind", "cases", "named", "false-case");
+  std::printf("\n%-16s %6s %8s %10s %12s\n", "kind", "cases", "named", "ambiguous", "false-case");
   for (int k = 0; k < 6; ++k)
-    std::printf("%-16s %6d %7.1f%% %12d\n", kinds[k], total[k], k ? 100.0 * named[k] / std::max(1, total[k]) : 0.0,
-                false_cases[k]);
+    std::printf("%-16s %6d %7.1f%% %10d %12d\n", kinds[k], total[k], k ? 100.0 * named[k] / std::max(1, total[k]) : 0.0,
+                ambiguous[k], false_cases[k]);
+  std::printf("named: a finding of the injected kind that names the injected channel(s), alone or among the\n"
+              "alternatives that explain the data equally (ambiguous: the symmetric layout cannot tell them apart)\n");
   std::printf("swaps that leave the rigid geometry unchanged (no check can see them): %d of %d, named %d\n",
               unobservable, total[2], unobservable_named);
   std::printf("swapped, observable swaps only: %.1f%%\n",

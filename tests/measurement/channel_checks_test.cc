@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "stagefit/common/error.h"
 #include "stagefit/model/model_file.h"
@@ -60,23 +62,47 @@ TEST(CheckChannels, ReversedVerticalSensorAndImpactAreNamed) {
 }
 
 TEST(CheckChannels, SwappedPairIsNamedAndRepaired) {
-  for (const auto& [a, b, is_input] :
-       std::vector<std::tuple<std::string, std::string, bool>>{{"a1x", "a4y", false}, {"a1z", "a2z", false}, {"h1", "h3", true}}) {
+  // The four vertical sensors have one parity relation, a1z + a3z = a2z + a4z (SPEC §2 layout): exchanging
+  // a1z and a2z breaks it exactly as exchanging a3z and a4z would repair it, so that finding is ambiguous.
+  for (const auto& [a, b, is_input, ambiguous] : std::vector<std::tuple<std::string, std::string, bool, bool>>{
+           {"a1x", "a4y", false, false}, {"a1z", "a2z", false, true}, {"h1", "h3", true, false}}) {
     const FrfData sound = Sound(7, 0.02);
     FrfData d = sound;
     synthetic::InjectSwapped(d, a, b, is_input);
     const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
     ASSERT_EQ(r.findings.size(), 1u) << a << " " << b << "\n" << Describe(r);
-    EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kSwapped);
-    EXPECT_EQ(r.findings[0].is_input, is_input);
-    std::vector<std::string> names = r.findings[0].channels;
-    std::sort(names.begin(), names.end());
-    std::vector<std::string> expected{a, b};
-    std::sort(expected.begin(), expected.end());
-    EXPECT_EQ(names, expected);
+    const auto& f = r.findings[0];
+    EXPECT_EQ(f.kind, ChannelFaultKind::kSwapped);
+    EXPECT_EQ(f.is_input, is_input);
+    auto sorted = [](std::vector<std::string> v) {
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    const std::vector<std::string> expected = sorted({a, b});
+    bool named = sorted(f.channels) == expected;
+    for (const auto& alt : f.alternatives) named = named || sorted(alt) == expected;
+    EXPECT_TRUE(named) << Describe(r);
+    EXPECT_EQ(!f.alternatives.empty(), ambiguous) << Describe(r);
+    EXPECT_EQ(f.repairable, !ambiguous);
+    if (ambiguous) continue;
     const FrfData repaired = RepairChannels(d, r.findings);
     for (int k = 0; k < d.num_frequencies(); ++k) EXPECT_EQ(repaired.frf[k], sound.frf[k]);
   }
+}
+
+TEST(CheckChannels, ReversalOfOneOfTwoCollinearImpactsIsAmbiguous) {
+  // h1 (at +y, pushing -y) and h5 (at -y, pushing +y) act along the same line: for a rigid body h1 = -h5,
+  // and reversing either one restores that. The check must say it cannot tell which.
+  FrfData d = Sound(13, 0.02);
+  synthetic::InjectReversed(d, "h5", true);
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  ASSERT_EQ(r.findings.size(), 1u) << Describe(r);
+  EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kReversed);
+  EXPECT_FALSE(r.findings[0].repairable);
+  std::vector<std::string> all = r.findings[0].channels;
+  for (const auto& a : r.findings[0].alternatives) all.insert(all.end(), a.begin(), a.end());
+  std::sort(all.begin(), all.end());
+  EXPECT_EQ(all, (std::vector<std::string>{"h1", "h5"}));
 }
 
 TEST(CheckChannels, DeadSensorIsNamed) {

@@ -41,7 +41,11 @@ struct ChannelFinding {
   double excess_after = 0;             ///< ... after the repair (or the exclusion) that explains it
   std::string evidence;                ///< one sentence with the numbers
   std::string action;                  ///< what to do
-  bool repairable = false;             ///< RepairChannels() fixes it (reversed, swapped)
+  bool repairable = false;             ///< RepairChannels() fixes it (reversed, swapped, when not ambiguous)
+  /// Other repairs that explain the data as well (a symmetric layout: reversing impact h1 or h5, two
+  /// impacts along the same line, gives the same rigid data). Not empty: the data cannot tell which of
+  /// `channels` and these is at fault, and nothing is repaired.
+  std::vector<std::vector<std::string>> alternatives;
 };
 
 struct ChannelCheckOptions {
