@@ -22,6 +22,13 @@ std::string ModelSource(const CommonOptions& options);
 /// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame.
 measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec);
 
+/// `data` without the channels of `--exclude-channels A,B` (comma-separated output or input names; empty:
+/// unchanged). Throws InputError naming an unknown channel (exit 2).
+measurement::FrfData ExcludeChannelsOption(const measurement::FrfData& data, const std::string& list);
+inline constexpr const char* kExcludeChannelsHelp =
+    "leave these channels out (comma-separated sensor or impact names, e.g. a2z,h3): a faulty channel that "
+    "diagnose's channel checks named";
+
 /// Help text of the shared --geometry option.
 inline constexpr const char* kGeometryHelp =
     "geometry CSV of the measurement's channels (kind,name,body,x,y,z,nx,ny,nz), over the file's own; default: "
