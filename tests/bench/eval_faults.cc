@@ -29,12 +29,15 @@ int main(int argc, char** argv) {
   int cases = 60;
   uint64_t first_seed = 1;
   bool verbose = false;
+  // --hidden-effects: no injected fault but one hidden catalogue effect per case; every finding is false.
+  bool hidden_effects = false;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--cases") && i + 1 < argc) cases = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--first-seed") && i + 1 < argc) first_seed = std::strtoull(argv[++i], nullptr, 10);
     else if (!std::strcmp(argv[i], "--verbose")) verbose = true;
+    else if (!std::strcmp(argv[i], "--hidden-effects")) hidden_effects = true;
     else {
-      std::fprintf(stderr, "usage: eval_faults [--cases N] [--first-seed S] [--verbose]\n");
+      std::fprintf(stderr, "usage: eval_faults [--cases N] [--first-seed S] [--verbose] [--hidden-effects]\n");
       return 2;
     }
   }
@@ -46,13 +49,13 @@ int main(int argc, char** argv) {
     std::mt19937_64 rng(seed * 7919 + 13);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     synthetic::HiddenEffectOptions options;
-    options.num_effects = 0;
+    options.num_effects = hidden_effects ? 1 : 0;
     const double fmax[] = {150.0, 400.0, 600.0};
     options.fmax_hz = fmax[static_cast<int>(u(rng) * 3) % 3];
     options.fmin_hz = options.fmax_hz / 40.0;
     options.num_frequencies = 300 + static_cast<int>(u(rng) * 900);
     auto hidden = synthetic::MakeHiddenEffectCase(nominal, seed, options);
-    const int k = static_cast<int>(seed % 6);
+    const int k = hidden_effects ? 0 : static_cast<int>(seed % 6);
     synthetic::InjectedFault injected;
     if (k > 0) injected = synthetic::InjectRandomFault(hidden.measurement, static_cast<ChannelFaultKind>(k - 1), rng);
     // A swap that maps the rigid geometry onto itself (e.g. the vertical impacts at +y and -y, which enter
@@ -94,7 +97,7 @@ int main(int argc, char** argv) {
     false_findings += wrong;
     if (verbose || (k > 0 && !hit) || wrong) {
       std::printf("seed %llu %s (%s; %.0f Hz, %d points): %s", static_cast<unsigned long long>(seed), kinds[k],
-                  k ? injected.description.c_str() : "-", options.fmax_hz, options.num_frequencies, hit ? "named" : "MISSED");
+                  k ? injected.description.c_str() : (hidden.effects.empty() ? "-" : hidden.effects[0].description.c_str()), options.fmax_hz, options.num_frequencies, k == 0 ? (wrong ? "FALSE FINDING" : "no finding") : hit ? "named" : "MISSED");
       if (!observable) std::printf(" (unobservable swap)");
       std::printf("\n%s", result.Report().c_str());
     }
