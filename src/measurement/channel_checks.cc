@@ -222,9 +222,6 @@ struct Checker {
       for (std::size_t b = 0; b < bands.size(); ++b) {
         const double x = Excess(P, s.m, s.noise, band_freqs[b]);
         worst = std::max(worst, x);
-        if (std::getenv("STAGEFIT_CHANNEL_DEBUG"))
-          std::fprintf(stderr, "%s band %.0f-%.0f: excess %.2f (%zu f)\n", what.c_str(), bands[b].low_hz, bands[b].high_hz, x,
-                       band_freqs[b].size());
         if (x > opt.excess_threshold) {
           flagged_bands.push_back(static_cast<int>(b));
           bad.insert(bad.end(), band_freqs[b].begin(), band_freqs[b].end());
