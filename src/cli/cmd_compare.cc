@@ -23,6 +23,7 @@ struct CompareFlags {
   std::string measurement;
   std::string space;
   std::string geometry;
+  std::string exclude_channels;
   std::string fmin;
   std::string fmax;
   std::string out_dir;
@@ -111,7 +112,8 @@ void RunCompare(const CompareFlags& f) {
   options.modes.min_mac = f.min_mac;
 
   const model::ModelSpec spec = LoadModelFromOptions(f.common);
-  const measurement::FrfData data = ReadMeasurementFor(f.measurement, f.geometry, spec);
+  const measurement::FrfData data =
+      ExcludeChannelsOption(ReadMeasurementFor(f.measurement, f.geometry, spec), f.exclude_channels);
   options.comparison.space = ResolveComparisonSpace(f.space, data);
   const compare::CompareSummary summary = compare::CompareModel(spec, data, options);
 
@@ -155,6 +157,7 @@ void RegisterCompareCommand(CLI::App& app) {
   AddWithOption(*command, flags->common);
   command->add_option("--measurement", flags->measurement, "measurement file (.mat, .csv, .uff)")->required();
   command->add_option("--geometry", flags->geometry, kGeometryHelp);
+  command->add_option("--exclude-channels", flags->exclude_channels, kExcludeChannelsHelp);
   command->add_option("--space", flags->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--fmin", flags->fmin, "lower end of the comparison band (e.g. \"10 Hz\"; default: the data's)");

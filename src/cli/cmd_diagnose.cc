@@ -10,6 +10,7 @@
 #include "stagefit/common/atomic_file.h"
 #include "stagefit/common/error.h"
 #include "stagefit/diagnose/diagnose.h"
+#include "stagefit/measurement/channel_checks.h"
 #include "stagefit/measurement/measurement_file.h"
 #include "stagefit/model/model_file.h"
 
@@ -24,6 +25,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     std::string measurement;
     std::string space;
     std::string geometry;
+    std::string exclude_channels;
+    bool no_channel_checks = false;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -34,6 +37,9 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   AddWithOption(*command, o->common);
   command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
   command->add_option("--geometry", o->geometry, kGeometryHelp);
+  command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
+  command->add_flag("--no-channel-checks", o->no_channel_checks,
+                    "skip the checks of the test bench (reversed, swapped, dead, clipped, locally resonant channels)");
   command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted with every candidate (comma-separated patterns)")
@@ -47,7 +53,35 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     if (!o->out.empty()) CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     model::ModelSpec spec = LoadModelFromOptions(o->common);
-    measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
+    measurement::FrfData data =
+        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
+    // Faults of the test bench first (docs/diagnose.md): reported as such; certain ones (a reversed
+    // channel, a swapped pair) repaired, the others' channels left out of the model search.
+    nlohmann::json channel_faults = nullptr;
+    if (!o->no_channel_checks) {
+      const measurement::ChannelCheckResult checks = measurement::CheckChannels(data, Eigen::Vector3d::Zero());
+      std::printf("%s", checks.Report().c_str());
+      channel_faults = nlohmann::json::array();
+      for (const auto& f : checks.findings) {
+        channel_faults.push_back({{"kind", measurement::ToString(f.kind)}, {"side", f.is_input ? "impact" : "sensor"},
+                                  {"channels", f.channels}, {"alternatives", f.alternatives},
+                                  {"low_hz", f.low_hz}, {"high_hz", f.high_hz},
+                                  {"peak_hz", f.kind == measurement::ChannelFaultKind::kLocalResonance ? nlohmann::json(f.peak_hz) : nlohmann::json(nullptr)},
+                                  {"evidence", f.evidence}, {"action", f.action}, {"repaired", f.repairable}});
+      }
+      if (!checks.findings.empty()) {
+        data = measurement::RepairChannels(data, checks.findings);
+        const std::vector<std::string> left_out = measurement::ChannelsToExclude(checks.findings);
+        if (!left_out.empty()) data = measurement::ExcludeChannels(data, left_out);
+        std::string text;
+        for (const auto& f : checks.findings)
+          if (f.repairable) text += (text.empty() ? "" : ", ") + std::string("repaired ") + f.channels[0];
+        for (const auto& n : left_out) text += (text.empty() ? "" : ", ") + std::string("left out ") + n;
+        std::printf("the model search runs on the sound channels (%s); fix the test bench, or pass "
+                    "--exclude-channels to compare and fit as well\n",
+                    text.c_str());
+      }
+    }
     diagnose::DiagnoseOptions options;
     options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;
@@ -100,6 +134,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
                                {"error", summary.error_initial},
                                {"error_baseline", summary.error_baseline},
                                {"noise_floor", NoiseFloorJson(summary.error_baseline, summary.noise_floor)},
+                               {"channel_faults", channel_faults},
                                {"effect_found", summary.effect_found},
                                {"verdict", summary.verdict},
                                {"candidates", candidates},

@@ -1,6 +1,7 @@
 #include "report.h"
 
 #include "stagefit/measurement/measurement_file.h"
+#include "stagefit/measurement/channel_checks.h"
 
 #include <cstdio>
 #include <sstream>
@@ -21,6 +22,23 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options) {
 
 std::string ModelSource(const CommonOptions& options) {
   return options.model_path.empty() ? "<embedded micro-station>" : options.model_path;
+}
+
+measurement::FrfData ExcludeChannelsOption(const measurement::FrfData& data, const std::string& list) {
+  std::vector<std::string> names;
+  std::string item;
+  for (char c : list + ",") {
+    if (c == ',') {
+      while (!item.empty() && item.back() == ' ') item.pop_back();
+      const auto start = item.find_first_not_of(' ');
+      if (start != std::string::npos) names.push_back(item.substr(start));
+      item.clear();
+    } else {
+      item += c;
+    }
+  }
+  if (names.empty()) return data;
+  return measurement::ExcludeChannels(data, names);
 }
 
 measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec) {

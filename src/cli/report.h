@@ -25,6 +25,13 @@ measurement::FrfData ReadMeasurementFor(const std::string& path, const std::stri
 /// The non-empty items of a comma-separated list ("payload,extra-body").
 std::vector<std::string> SplitCommaList(const std::string& text);
 
+/// `data` without the channels of `--exclude-channels A,B` (comma-separated output or input names; empty:
+/// unchanged). Throws InputError naming an unknown channel (exit 2).
+measurement::FrfData ExcludeChannelsOption(const measurement::FrfData& data, const std::string& list);
+inline constexpr const char* kExcludeChannelsHelp =
+    "leave these channels out (comma-separated sensor or impact names, e.g. a2z,h3): a faulty channel that "
+    "diagnose's channel checks named";
+
 /// Help text of the shared --geometry option.
 inline constexpr const char* kGeometryHelp =
     "geometry CSV of the measurement's channels (kind,name,body,x,y,z,nx,ny,nz), over the file's own; default: "

@@ -1,0 +1,174 @@
+#include "stagefit/measurement/channel_checks.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include "stagefit/common/error.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/synthetic/channel_faults.h"
+#include "stagefit/synthetic/synthetic_measurement.h"
+
+namespace stagefit::measurement {
+namespace {
+
+// A sound 12x10 accelerance measurement of a scattered truth without hidden effect.
+FrfData Sound(uint64_t seed, double noise, double fmax_hz = 400.0) {
+  synthetic::HiddenEffectOptions o;
+  o.num_effects = 0;
+  o.noise_min = o.noise_max = noise;
+  o.fmax_hz = fmax_hz;
+  o.fmin_hz = fmax_hz / 40.0;
+  return synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), seed, o).measurement;
+}
+
+std::string Describe(const ChannelCheckResult& r) { return r.Report(); }
+
+TEST(CheckChannels, SoundDataGiveNoFinding) {
+  for (uint64_t seed : {1, 2, 3, 4})
+    for (double noise : {0.01, 0.02, 0.03}) {
+      const auto r = CheckChannels(Sound(seed, noise), Eigen::Vector3d::Zero());
+      EXPECT_TRUE(r.checked);
+      EXPECT_TRUE(r.findings.empty()) << "seed " << seed << " noise " << noise << "\n" << Describe(r);
+    }
+}
+
+TEST(CheckChannels, ReversedSensorIsNamedAndRepaired) {
+  const FrfData sound = Sound(5, 0.02);
+  FrfData d = sound;
+  synthetic::InjectReversed(d, "a2y", false);
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  ASSERT_EQ(r.findings.size(), 1u) << Describe(r);
+  EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kReversed);
+  EXPECT_FALSE(r.findings[0].is_input);
+  EXPECT_EQ(r.findings[0].channels, std::vector<std::string>{"a2y"});
+  const FrfData repaired = RepairChannels(d, r.findings);
+  for (int k = 0; k < d.num_frequencies(); ++k) EXPECT_EQ(repaired.frf[k], sound.frf[k]);
+  EXPECT_TRUE(CheckChannels(repaired, Eigen::Vector3d::Zero()).findings.empty());
+}
+
+TEST(CheckChannels, ReversedVerticalSensorAndImpactAreNamed) {
+  for (const auto& [name, is_input] : std::vector<std::pair<std::string, bool>>{{"a3z", false}, {"h4", true}, {"h9", true}}) {
+    FrfData d = Sound(6, 0.03);
+    synthetic::InjectReversed(d, name, is_input);
+    const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+    ASSERT_EQ(r.findings.size(), 1u) << name << "\n" << Describe(r);
+    EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kReversed) << name;
+    EXPECT_EQ(r.findings[0].is_input, is_input);
+    EXPECT_EQ(r.findings[0].channels, std::vector<std::string>{name});
+  }
+}
+
+TEST(CheckChannels, SwappedPairIsNamedAndRepaired) {
+  // The four vertical sensors have one parity relation, a1z + a3z = a2z + a4z (SPEC §2 layout): exchanging
+  // a1z and a2z breaks it exactly as exchanging a3z and a4z would repair it, so that finding is ambiguous.
+  for (const auto& [a, b, is_input, ambiguous] : std::vector<std::tuple<std::string, std::string, bool, bool>>{
+           {"a1x", "a4y", false, false}, {"a1z", "a2z", false, true}, {"h1", "h3", true, false}}) {
+    const FrfData sound = Sound(7, 0.02);
+    FrfData d = sound;
+    synthetic::InjectSwapped(d, a, b, is_input);
+    const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+    ASSERT_EQ(r.findings.size(), 1u) << a << " " << b << "\n" << Describe(r);
+    const auto& f = r.findings[0];
+    EXPECT_EQ(f.kind, ChannelFaultKind::kSwapped);
+    EXPECT_EQ(f.is_input, is_input);
+    auto sorted = [](std::vector<std::string> v) {
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    const std::vector<std::string> expected = sorted({a, b});
+    bool named = sorted(f.channels) == expected;
+    for (const auto& alt : f.alternatives) named = named || sorted(alt) == expected;
+    EXPECT_TRUE(named) << Describe(r);
+    EXPECT_EQ(!f.alternatives.empty(), ambiguous) << Describe(r);
+    EXPECT_EQ(f.repairable, !ambiguous);
+    if (ambiguous) continue;
+    const FrfData repaired = RepairChannels(d, r.findings);
+    for (int k = 0; k < d.num_frequencies(); ++k) EXPECT_EQ(repaired.frf[k], sound.frf[k]);
+  }
+}
+
+TEST(CheckChannels, ReversalOfOneOfTwoCollinearImpactsIsAmbiguous) {
+  // h1 (at +y, pushing -y) and h5 (at -y, pushing +y) act along the same line: for a rigid body h1 = -h5,
+  // and reversing either one restores that. The check must say it cannot tell which.
+  FrfData d = Sound(13, 0.02);
+  synthetic::InjectReversed(d, "h5", true);
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  ASSERT_EQ(r.findings.size(), 1u) << Describe(r);
+  EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kReversed);
+  EXPECT_FALSE(r.findings[0].repairable);
+  std::vector<std::string> all = r.findings[0].channels;
+  for (const auto& a : r.findings[0].alternatives) all.insert(all.end(), a.begin(), a.end());
+  std::sort(all.begin(), all.end());
+  EXPECT_EQ(all, (std::vector<std::string>{"h1", "h5"}));
+}
+
+TEST(CheckChannels, DeadSensorIsNamed) {
+  FrfData d = Sound(8, 0.01);
+  synthetic::InjectDead(d, "a4x", 1e-3, 3);
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  ASSERT_EQ(r.findings.size(), 1u) << Describe(r);
+  EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kDead);
+  EXPECT_EQ(r.findings[0].channels, std::vector<std::string>{"a4x"});
+  EXPECT_EQ(ChannelsToExclude(r.findings), std::vector<std::string>{"a4x"});
+}
+
+TEST(CheckChannels, ClippedSensorIsNamed) {
+  FrfData d = Sound(9, 0.02);
+  synthetic::InjectClipped(d, "a2x", 0.5);
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  ASSERT_EQ(r.findings.size(), 1u) << Describe(r);
+  EXPECT_EQ(r.findings[0].kind, ChannelFaultKind::kClipped);
+  EXPECT_EQ(r.findings[0].channels, std::vector<std::string>{"a2x"});
+}
+
+TEST(CheckChannels, LocalResonanceIsNamedWithItsBand) {
+  for (const auto& [name, fn] : std::vector<std::pair<std::string, double>>{{"a1y", 60.0}, {"a4z", 150.0}}) {
+    FrfData d = Sound(10, 0.02);
+    synthetic::InjectLocalResonance(d, name, fn, 15.0);
+    const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+    ASSERT_EQ(r.findings.size(), 1u) << name << "\n" << Describe(r);
+    const auto& f = r.findings[0];
+    EXPECT_EQ(f.kind, ChannelFaultKind::kLocalResonance);
+    EXPECT_EQ(f.channels, std::vector<std::string>{name});
+    EXPECT_LE(f.low_hz, fn);
+    EXPECT_GE(f.high_hz, fn);
+    // The amplification 1/|x| of a base-excited mount peaks within a few per cent of fn for Q = 15.
+    EXPECT_NEAR(f.peak_hz, fn, 0.05 * fn) << Describe(r);
+    EXPECT_FALSE(f.repairable);
+  }
+}
+
+TEST(CheckChannels, SkipsDataWithoutGeometry) {
+  FrfData d = Sound(11, 0.01);
+  for (auto& c : d.outputs) c.body.clear();
+  const auto r = CheckChannels(d, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(r.checked);
+  EXPECT_NE(r.Report().find("skipped"), std::string::npos);
+}
+
+TEST(ExcludeChannels, DropsOutputsAndInputsAndRejectsUnknownNames) {
+  const FrfData d = Sound(12, 0.01);
+  const FrfData e = ExcludeChannels(d, {"a2z", "h3"});
+  ASSERT_EQ(e.num_outputs(), 11);
+  ASSERT_EQ(e.num_inputs(), 9);
+  EXPECT_EQ(e.outputs[4].name, "a2y");
+  EXPECT_EQ(e.outputs[5].name, "a3x");
+  EXPECT_EQ(e.inputs[2].name, "h4");
+  for (int k = 0; k < d.num_frequencies(); k += 37) {
+    EXPECT_EQ(e.frf[k](5, 2), d.frf[k](6, 3));  // a3x <- h4
+    EXPECT_EQ(e.coherence[k](5, 2), d.coherence[k](6, 3));
+  }
+  try {
+    ExcludeChannels(d, {"a9q"});
+    FAIL() << "no error";
+  } catch (const InputError& err) {
+    EXPECT_NE(std::string(err.what()).find("'a9q'"), std::string::npos) << err.what();
+    EXPECT_NE(std::string(err.what()).find("a1x"), std::string::npos) << err.what();
+  }
+}
+
+}  // namespace
+}  // namespace stagefit::measurement
