@@ -55,33 +55,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     model::ModelSpec spec = LoadModelFromOptions(o->common);
     measurement::FrfData data =
         ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
-    // Faults of the test bench first (docs/diagnose.md): reported as such; certain ones (a reversed
-    // channel, a swapped pair) repaired, the others' channels left out of the model search.
-    nlohmann::json channel_faults = nullptr;
-    if (!o->no_channel_checks) {
-      const measurement::ChannelCheckResult checks = measurement::CheckChannels(data, Eigen::Vector3d::Zero());
-      std::printf("%s", checks.Report().c_str());
-      channel_faults = nlohmann::json::array();
-      for (const auto& f : checks.findings) {
-        channel_faults.push_back({{"kind", measurement::ToString(f.kind)}, {"side", f.is_input ? "impact" : "sensor"},
-                                  {"channels", f.channels}, {"alternatives", f.alternatives},
-                                  {"low_hz", f.low_hz}, {"high_hz", f.high_hz},
-                                  {"peak_hz", f.kind == measurement::ChannelFaultKind::kLocalResonance ? nlohmann::json(f.peak_hz) : nlohmann::json(nullptr)},
-                                  {"evidence", f.evidence}, {"action", f.action}, {"repaired", f.repairable}});
-      }
-      if (!checks.findings.empty()) {
-        data = measurement::RepairChannels(data, checks.findings);
-        const std::vector<std::string> left_out = measurement::ChannelsToExclude(checks.findings);
-        if (!left_out.empty()) data = measurement::ExcludeChannels(data, left_out);
-        std::string text;
-        for (const auto& f : checks.findings)
-          if (f.repairable) text += (text.empty() ? "" : ", ") + std::string("repaired ") + f.channels[0];
-        for (const auto& n : left_out) text += (text.empty() ? "" : ", ") + std::string("left out ") + n;
-        std::printf("the model search runs on the sound channels (%s); fix the test bench, or pass "
-                    "--exclude-channels to compare and fit as well\n",
-                    text.c_str());
-      }
-    }
+    // Faults of the test bench first (docs/diagnose.md).
+    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data);
     diagnose::DiagnoseOptions options;
     options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;

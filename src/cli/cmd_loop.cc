@@ -30,6 +30,8 @@ void RegisterLoopCommand(CLI::App& app) {
     std::string measurement, out, out_dir;
     std::string space;
     std::string geometry;
+    std::string exclude_channels;
+    bool no_channel_checks = false;
     std::string params = "*.k.*";
     std::string effects;
     double fmin = 0, fmax = 0;
@@ -43,6 +45,10 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--out-dir", o->out_dir,
                       "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
   command->add_option("--geometry", o->geometry, kGeometryHelp);
+  command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
+  command->add_flag("--no-channel-checks", o->no_channel_checks,
+                    "skip the checks of the test bench (reversed, swapped, dead, clipped, locally resonant channels) "
+                    "that run before the loop");
   command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
   command->add_option("--params", o->params, "model parameters fitted in every step (comma-separated patterns)")
@@ -62,7 +68,10 @@ void RegisterLoopCommand(CLI::App& app) {
     }
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     const model::ModelSpec spec = LoadModelFromOptions(o->common);
-    const measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
+    measurement::FrfData data =
+        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
+    // Faults of the test bench before faults of the model (docs/diagnose.md, "Test bench first").
+    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data);
     diagnose::LoopOptions options;
     options.diagnose.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;
@@ -110,6 +119,7 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"history", history},
                                {"effects_added", summary.effects_added},
                                {"stop_reason", summary.stop_reason},
+                               {"channel_faults", channel_faults},
                                {"last_verdict", summary.last_verdict},
                                {"final_model", o->out},
                                {"time_s", summary.time_s}};

@@ -49,6 +49,32 @@ measurement::FrfData ReadMeasurementFor(const std::string& path, const std::stri
   return measurement::ReadMeasurement(path, options);
 }
 
+nlohmann::json CheckTestBench(measurement::FrfData* data) {
+  const measurement::ChannelCheckResult checks = measurement::CheckChannels(*data, Eigen::Vector3d::Zero());
+  std::printf("%s", checks.Report().c_str());
+  nlohmann::json channel_faults = nlohmann::json::array();
+  for (const auto& f : checks.findings) {
+    channel_faults.push_back(
+        {{"kind", measurement::ToString(f.kind)}, {"side", f.is_input ? "impact" : "sensor"},
+         {"channels", f.channels}, {"alternatives", f.alternatives}, {"low_hz", f.low_hz}, {"high_hz", f.high_hz},
+         {"peak_hz", f.kind == measurement::ChannelFaultKind::kLocalResonance ? nlohmann::json(f.peak_hz) : nlohmann::json(nullptr)},
+         {"evidence", f.evidence}, {"action", f.action}, {"repaired", f.repairable}});
+  }
+  if (checks.findings.empty()) return channel_faults;
+  *data = measurement::RepairChannels(*data, checks.findings);
+  const std::vector<std::string> left_out = measurement::ChannelsToExclude(checks.findings);
+  if (!left_out.empty()) *data = measurement::ExcludeChannels(*data, left_out);
+  std::string text;
+  for (const auto& f : checks.findings) {
+    if (f.repairable) text += (text.empty() ? "" : ", ") + std::string("repaired ") + f.channels[0];
+  }
+  for (const auto& n : left_out) text += (text.empty() ? "" : ", ") + std::string("left out ") + n;
+  std::printf("the model search runs on the sound channels (%s); fix the test bench, or pass "
+              "--exclude-channels to compare and fit as well\n",
+              text.c_str());
+  return channel_faults;
+}
+
 std::vector<std::string> SplitCommaList(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream s(text);

@@ -22,6 +22,12 @@ std::string ModelSource(const CommonOptions& options);
 /// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame.
 measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec);
 
+/// Faults of the test bench first (docs/diagnose.md, "Test bench first"): measurement::CheckChannels on
+/// `data`, the findings printed with what to do; certain ones (a reversed channel, a swapped pair)
+/// repaired in `data`, the other faulty channels left out of it. Returns the findings as the reports'
+/// "channel_faults" array (empty when the channels are sound).
+nlohmann::json CheckTestBench(measurement::FrfData* data);
+
 /// The non-empty items of a comma-separated list ("payload,extra-body").
 std::vector<std::string> SplitCommaList(const std::string& text);
 

@@ -56,6 +56,26 @@ TEST(ChannelChecksCli, ReversedSensorIsReportedAsAFaultNotAsAnEffect) {
   EXPECT_TRUE(nlohmann::json::parse(in3)["channel_faults"].is_null());
 }
 
+// The loop checks the test bench first too: a reversed a2y on the shipped example is repaired, and the
+// loop ends at the noise floor with the example's payload as on the sound data.
+TEST(ChannelChecksCli, TheLoopRepairsAReversedChannelFirst) {
+  auto dir = TempDir("channel-loop");
+  measurement::FrfData data = measurement::ReadMeasurement(kExample);
+  for (auto& h : data.frf) h.row(4) *= -1.0;
+  measurement::WriteMeasurement(dir / "rev.mat", data);
+  const auto r = RunStagefit("loop --measurement " + (dir / "rev.mat").string() + " --effects payload --max-rounds 1 --out " +
+                             (dir / "final.toml").string() + " --report " + (dir / "loop.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("channel fault: reversed sensor a2y"), std::string::npos) << r.output;
+  std::ifstream in(dir / "loop.json");
+  const auto report = nlohmann::json::parse(in);
+  ASSERT_EQ(report["channel_faults"].size(), 1u) << report.dump(2);
+  EXPECT_EQ(report["channel_faults"][0]["channels"][0], "a2y");
+  EXPECT_LT(report["noise_floor"]["error_over_floor"].get<double>(), 1.1) << r.output;
+  ASSERT_EQ(report["effects_added"].size(), 1u);
+  EXPECT_EQ(report["effects_added"][0].get<std::string>().rfind("payload@hexapod:", 0), 0u);
+}
+
 TEST(ChannelChecksCli, ExcludeChannelsOnCompareFitDiagnose) {
   const auto c = RunStagefit("compare --measurement " + kExample + " --exclude-channels a2z,h3");
   ASSERT_EQ(c.exit_code, 0) << c.output;
