@@ -112,7 +112,8 @@ void RegisterFitCommand(CLI::App& app) {
   AddWithOption(*command, o->common);
   auto* measurement_option = command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)");
   auto* params_option = command->add_option(
-      "--params", o->params, "free parameters: comma-separated name patterns (default \"*.k.*\", all joint stiffnesses)");
+      "--params", o->params, "free parameters: comma-separated name patterns (default \"*.k.*\" and every parameter of the model's "
+      "effects, e.g. payload@hexapod.mass; \"*@*\" matches every effect parameter)");
   command->add_option("--recipe", o->recipe, "fit recipe (TOML, fitting/recipe-*.toml); options given here override it");
   auto* solver_option = command->add_option("--solver", o->solver, "ceres (default) or nlopt")
                             ->check(CLI::IsMember({"ceres", "nlopt"}));
@@ -147,7 +148,8 @@ void RegisterFitCommand(CLI::App& app) {
     if (measurement_option->count() > 0) recipe.measurement = o->measurement;
     if (!o->common.model_path.empty()) recipe.model = o->common.model_path;
     if (params_option->count() > 0) recipe.params = SplitPatterns(o->params);
-    if (recipe.params.empty()) recipe.params = {"*.k.*"};
+    const bool default_params = recipe.params.empty();
+    if (default_params) recipe.params = {"*.k.*"};
     if (solver_option->count() > 0) recipe.options.solver = fit::ParseSolverKind(o->solver, "--solver");
     if (algorithm_option->count() > 0) {
       fit::CheckNloptAlgorithm(o->nlopt_algorithm, "--nlopt-algorithm");
@@ -177,6 +179,8 @@ void RegisterFitCommand(CLI::App& app) {
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
 
     model::ModelSpec spec = LoadModelFromOptions(model_options);
+    // By default the stiffnesses and every parameter of the model's effects (model/parameters.h).
+    if (default_params) recipe.params = model::WithEffectParameters(recipe.params, spec);
     const measurement::FrfData data =
         ExcludeChannelsOption(ReadMeasurementFor(recipe.measurement, o->geometry, spec), o->exclude_channels);
     if (!recipe.space_given) recipe.comparison.space = ResolveComparisonSpace("", data);

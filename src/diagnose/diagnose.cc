@@ -55,45 +55,7 @@ std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const
   return model::MatchParameters(spec, patterns);
 }
 
-std::string Explain(const Candidate& c) {
-  const auto& p = c.effect.parameters;
-  auto get = [&](const char* k) { return p.count(k) ? p.at(k) : 0.0; };
-  const std::string& where = c.effect.location;
-  const std::string& n = c.effect.name;
-  if (n == "payload") {
-    return Format("a payload of about %.1f kg, %.0f mm above", get("mass"), 1e3 * get("z")) + " the centre of mass of " + where +
-           Format(" (%.0f mm off-axis)", 1e3 * std::hypot(get("x"), get("y")));
-  }
-  if (n == "extra-body") {
-    const double f = std::sqrt(get("k") / get("mass")) / (2 * M_PI);
-    return Format("a body of about %.1f kg", get("mass")) + " attached to " + where +
-           Format(" by a compliant joint: a local mode near %.0f Hz", f);
-  }
-  if (n == "servo-stiffness") {
-    return "the drive of " + where + " is not rigid: it behaves as a spring of " + Format("%.3g", get("k")) +
-           " (N/m or Nm/rad)";
-  }
-  if (n == "joint-offset") {
-    return "the stiffness centre of joint " + where + Format(" is offset by (%.0f, %.0f, %.0f) mm", 1e3 * get("dx"), 1e3 * get("dy"), 1e3 * get("dz")) +
-           " from where the model puts it";
-  }
-  if (n == "coupled-stiffness") {
-    const int dot = static_cast<int>(where.rfind('.'));
-    return "joint " + where.substr(0, dot) + " couples " + where.substr(dot + 1, 2) + " and " + where.substr(dot + 4, 2) +
-           Format(" (coupling stiffness %.3g)", get("k"));
-  }
-  if (n == "structural-damping") {
-    return "joint " + where + Format(" dissipates as a hysteretic loss factor of %.3f", get("eta")) +
-           " rather than as viscous damping";
-  }
-  if (n == "sensor-geometry") {
-    return "channel " + where + Format(" is not where declared: offset (%.1f, %.1f, %.1f) mm", 1e3 * get("dx"), 1e3 * get("dy"), 1e3 * get("dz")) +
-           Format(", rotated by (%.1f, %.1f, %.1f) deg", get("rx") * 180 / M_PI, get("ry") * 180 / M_PI, get("rz") * 180 / M_PI);
-  }
-  if (n == "delay") return Format("the acquisition chain delays the signals by %.3f ms", 1e3 * get("tau"));
-  if (n == "gyroscopic") return Format("the subtree above joint ") + where + Format(" spins at %.1f rpm", get("spin") * 60 / (2 * M_PI));
-  return c.with;
-}
+std::string Explain(const Candidate& c) { return model::ExplainEffect(c.effect); }
 
 /// "explains why the model's mode at X Hz is measured at Y Hz": the measured mode whose pairing
 /// improves most when the effect is added.
@@ -195,7 +157,7 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
   const auto mass = effect.parameters.find("mass");
-  if ((effect.name == "payload" || effect.name == "extra-body") && mass != effect.parameters.end() &&
+  if (model::FindEffectDefinition(effect.name).adds_mass && mass != effect.parameters.end() &&
       mass->second > stack_kg) {
     return Format("its fitted mass %.4g kg is more than the whole stack's %.4g kg", mass->second, stack_kg);
   }
@@ -382,7 +344,11 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
 
   // 1. Baseline.
   summary.baseline = spec;
-  std::vector<model::ParameterInfo> model_params = MatchQuiet(spec, options.params);
+  // The model's own parameters, and those of the effects already in it (DiagnoseOptions::refit_effects):
+  // fitted in the baseline and again with every candidate.
+  const std::vector<std::string> params =
+      options.refit_effects ? model::WithEffectParameters(options.params, spec) : options.params;
+  std::vector<model::ParameterInfo> model_params = MatchQuiet(spec, params);
   if (!model_params.empty()) {
     fit::FitOptions fo;
     fo.max_iterations = options.baseline_iterations;
@@ -428,7 +394,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   std::vector<Try> tries;
   auto add_try = [&](const model::Effect& e) {
     tries.push_back({e, {}, {}});
-    if (e.name == "payload" || e.name == "extra-body") tries.push_back({e, as_given, {}});
+    if (model::FindEffectDefinition(e.name).adds_mass) tries.push_back({e, as_given, {}});
     // A channel whose direction, as the other channels see it, is off by more than kMinEstimatedTurn is
     // also tried turned as they see it, held there: only the model's parameters are fitted. In
     // compliance space a fitted correction is poorly determined. It drifted from the estimate (a
@@ -448,7 +414,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         std::find(options.effects.begin(), options.effects.end(), e.name) == options.effects.end()) {
       continue;
     }
-    if (e.name == "gyroscopic") continue;  // spin is set by the experiment, not fitted from hammer data
+    if (model::FindEffectDefinition(e.name).set_by_experiment) continue;  // a spin rate: not from hammer data
     if (e.name == "sensor-geometry" && turns.count(e.location) && turns.at(e.location).angle_rad <= kMinEstimatedTurn &&
         !IsImpact(measurement, e.location)) {
       // An accelerometer whose direction the other channels confirm is not tried: its offsets alone
@@ -551,7 +517,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         // at 1.2x with short ones.
         fit_options.initial_trust_region_radius =
             list[i].effect.name == "sensor-geometry" ? std::min(trust_region_radius, kPolishTrustRegionRadius) : trust_region_radius;
-        EffectFit f = FitEffect(base, on, list[i].effect, options.params, fit_options);
+        EffectFit f = FitEffect(base, on, list[i].effect, params, fit_options);
         if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) return;
         out[i].held_parameters = list[i].held;
         score(f, &out[i], refined, scale);

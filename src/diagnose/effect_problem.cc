@@ -6,46 +6,9 @@
 #include "stagefit/common/dof.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/units.h"
+#include "stagefit/fit/model_fit.h"
 
 namespace stagefit::diagnose {
-namespace {
-
-bool SameGeometryCorrections(const model::ModelSpec& a, const model::ModelSpec& b) {
-  if (a.geometry_corrections.size() != b.geometry_corrections.size()) return false;
-  for (size_t i = 0; i < a.geometry_corrections.size(); ++i) {
-    const auto& x = a.geometry_corrections[i];
-    const auto& y = b.geometry_corrections[i];
-    if (x.channel != y.channel || x.is_impact != y.is_impact || x.offset_W != y.offset_W || x.rotation_rad != y.rotation_rad) {
-      return false;
-    }
-  }
-  return true;
-}
-
-/// Same generalised coordinates, channels and delay: the systems differ at most in M, C, K, K_loss.
-bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
-  return a.num_dofs() == b.num_dofs() && a.dof_names == b.dof_names && a.input_names == b.input_names &&
-         a.output_names == b.output_names && a.B0 == b.B0 && a.B2 == b.B2 && a.Cq == b.Cq && a.D0 == b.D0 &&
-         a.delay_s == b.delay_s;
-}
-
-bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
-  return SameCoordinatesAndChannels(a, b) && a.M == b.M && a.C == b.C && a.K == b.K && a.K_loss == b.K_loss;
-}
-
-/// (plus - minus) / (2 h) of the dynamic stiffness, as a derivative.
-response::DynamicStiffnessDerivative SystemDifference(const model::SecondOrderSystem& plus,
-                                                      const model::SecondOrderSystem& minus, double h,
-                                                      const std::string& name) {
-  model::SystemDerivative d;
-  d.dM = (plus.M - minus.M) / (2 * h);
-  d.dC = (plus.C - minus.C) / (2 * h);
-  d.dK = (plus.K - minus.K) / (2 * h);
-  d.dK_loss = (plus.K_loss - minus.K_loss) / (2 * h);
-  return response::MakeDynamicStiffnessDerivative(d, name);
-}
-
-}  // namespace
 
 std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& base, const model::Effect& effect,
                                                      const std::vector<std::string>& held,
@@ -60,38 +23,11 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
     s.name = effect.name + "." + p.name;
     s.unit = SiUnit(p.dimension);
     s.initial = effect.parameters.at(p.name);
-    if (p.dimension == dim::kLength) {
-      // A channel's position is known to a few centimetres (it is measured on the structure); the
-      // larger range of a stiffness centre or a payload's offset let a correction of a channel that is
-      // right mimic another channel's turn in compliance space (docs/diagnose.md).
-      const double range = effect.name == "sensor-geometry" ? 0.05 : 0.3;
-      s.lower = -range;
-      s.upper = range;
-    } else if (p.dimension == dim::kAngle) {
-      s.lower = -kMaxCorrectionTurn;
-      s.upper = kMaxCorrectionTurn;
-    } else if (effect.name == "coupled-stiffness") {
-      // |k_ab| < sqrt(k_aa k_bb) keeps the joint positive definite.
-      const int dot = static_cast<int>(effect.location.rfind('.'));
-      const auto& joint = base.joints[model::FindJoint(base, effect.location.substr(0, dot))];
-      const auto a = *ParseDof(effect.location.substr(dot + 1, 2));
-      const auto b = *ParseDof(effect.location.substr(dot + 4, 2));
-      const double limit = 0.95 * std::sqrt(joint.stiffness[index(a)] * joint.stiffness[index(b)]);
-      s.lower = -limit;
-      s.upper = limit;
-      s.scale = limit;  // N/m to Nm/rad: its Jacobian column is far below 1 per unit (fit::ParameterSpec)
-    } else if (effect.name == "gyroscopic") {
-      s.lower = -1000;
-      s.upper = 1000;
-    } else if (p.positive && s.initial > 0) {
-      s.log_scale = true;
-      double factor = 1e3;
-      if (p.name == "eta" || p.name == "zeta") factor = 30;
-      if (effect.name == "delay") factor = 100;
-      s.lower = s.initial / factor;
-      s.upper = s.initial * factor;
-      if (p.name == "mass" && effect.name == "payload") s.upper = std::min(s.upper, 20.0 * s.initial);
-    }
+    const model::EffectParameterRange range = model::EffectRange(base, effect, p.name);
+    s.log_scale = range.log_scale && s.initial > 0;
+    s.lower = range.lower;
+    s.upper = range.upper;
+    s.scale = range.scale;
     specs.push_back(s);
   }
   return specs;
@@ -160,44 +96,56 @@ bool EffectProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen
       comparison_->ResidualsAndJacobian(spec, {}, r, nullptr, &workspace_);
       return r->allFinite();
     }
-    // Each effect parameter's route (header), from the specs at p +- h.
-    routes_.assign(ne, EffectColumnRoute::kResidualDifference);
-    std::vector<double> steps(ne);
-    std::vector<model::ModelSpec> plus(ne), minus(ne);
+    // The columns by differences (header): every effect parameter, and the model's parameters without
+    // an analytic derivative (the parameters of effects already in the model, a body's mass).
+    std::vector<int> differenced;
+    std::vector<model::ParameterInfo> analytic;
+    std::vector<int> analytic_of;
+    for (int i = 0; i < ne; ++i) differenced.push_back(i);
+    for (int k = 0; k < nm; ++k) {
+      if (model::HasAnalyticDerivative(spec, model_params_[k])) {
+        analytic.push_back(model_params_[k]);
+        analytic_of.push_back(ne + k);
+      } else {
+        differenced.push_back(ne + k);
+      }
+    }
+    const int nd = static_cast<int>(differenced.size());
+    routes_.assign(nd, EffectColumnRoute::kResidualDifference);
+    std::vector<double> steps(nd);
+    std::vector<model::ModelSpec> plus(nd), minus(nd);
     std::vector<response::DynamicStiffnessDerivative> further;
     std::vector<int> further_of;
     const model::SecondOrderSystem at = comparison_->ModelSystem(spec);
-    for (int i = 0; i < ne; ++i) {
-      steps[i] = Step(i, p(i));
+    for (int d = 0; d < nd; ++d) {
+      const int i = differenced[d];
+      steps[d] = i < ne ? Step(i, p(i)) : fit::DifferenceStep(spec, model_params_[i - ne], p(i));
       Eigen::VectorXd pp = p, pm = p;
-      pp(i) += steps[i];
-      pm(i) -= steps[i];
-      if (!SpecAt(pp, &plus[i]) || !SpecAt(pm, &minus[i])) return false;
-      const model::SecondOrderSystem sp = comparison_->ModelSystem(plus[i]);
-      const model::SecondOrderSystem sm = comparison_->ModelSystem(minus[i]);
-      if (SameGeometryCorrections(spec, plus[i]) && SameGeometryCorrections(spec, minus[i]) &&
-          SameCoordinatesAndChannels(at, sp) && SameCoordinatesAndChannels(at, sm)) {
-        routes_[i] = EffectColumnRoute::kSystemDifference;
-        further.push_back(SystemDifference(sp, sm, steps[i], effect_specs_[i].name));
-        further_of.push_back(i);
-      } else if (SameSystem(at, sp) && SameSystem(at, sm)) {
-        routes_[i] = EffectColumnRoute::kMeasuredDifference;
+      pp(i) += steps[d];
+      pm(i) -= steps[d];
+      if (!SpecAt(pp, &plus[d]) || !SpecAt(pm, &minus[d])) return false;
+      model::SecondOrderSystem sp, sm;
+      routes_[d] = fit::ChooseColumnRoute(*comparison_, spec, at, plus[d], minus[d], &sp, &sm);
+      if (routes_[d] == EffectColumnRoute::kSystemDifference) {
+        further.push_back(fit::SystemDifference(sp, sm, steps[d], i < ne ? effect_specs_[i].name : model_params_[i - ne].name));
+        further_of.push_back(d);
       }
     }
-    comparison_->ResidualsAndJacobian(spec, model_params_, further, r, &jacobian_, &workspace_);
+    comparison_->ResidualsAndJacobian(spec, analytic, further, r, &jacobian_, &workspace_);
     J->resize(r->size(), num_parameters());
-    J->rightCols(nm) = jacobian_.leftCols(nm);
-    for (size_t k = 0; k < further_of.size(); ++k) J->col(further_of[k]) = jacobian_.col(nm + static_cast<int>(k));
-    for (int i = 0; i < ne; ++i) {
-      if (routes_[i] == EffectColumnRoute::kSystemDifference) continue;
-      if (routes_[i] == EffectColumnRoute::kMeasuredDifference) {
-        comparison_->ResidualsWithModelResponse(plus[i], workspace_.frf.values, &r_plus_);
-        comparison_->ResidualsWithModelResponse(minus[i], workspace_.frf.values, &r_minus_);
+    const int na = static_cast<int>(analytic.size());
+    for (int a = 0; a < na; ++a) J->col(analytic_of[a]) = jacobian_.col(a);
+    for (size_t k = 0; k < further_of.size(); ++k) J->col(differenced[further_of[k]]) = jacobian_.col(na + static_cast<int>(k));
+    for (int d = 0; d < nd; ++d) {
+      if (routes_[d] == EffectColumnRoute::kSystemDifference) continue;
+      if (routes_[d] == EffectColumnRoute::kMeasuredDifference) {
+        comparison_->ResidualsWithModelResponse(plus[d], workspace_.frf.values, &r_plus_);
+        comparison_->ResidualsWithModelResponse(minus[d], workspace_.frf.values, &r_minus_);
       } else {
-        comparison_->ResidualsAndJacobian(plus[i], {}, &r_plus_, nullptr, &difference_workspace_);
-        comparison_->ResidualsAndJacobian(minus[i], {}, &r_minus_, nullptr, &difference_workspace_);
+        comparison_->ResidualsAndJacobian(plus[d], {}, &r_plus_, nullptr, &difference_workspace_);
+        comparison_->ResidualsAndJacobian(minus[d], {}, &r_minus_, nullptr, &difference_workspace_);
       }
-      J->col(i) = (r_plus_ - r_minus_) / (2 * steps[i]);
+      J->col(differenced[d]) = (r_plus_ - r_minus_) / (2 * steps[d]);
     }
     return r->allFinite() && J->allFinite();
   } catch (const InputError&) {

@@ -40,7 +40,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // Fits the model's parameters of `model` (a copy is kept when the fit makes it worse).
   auto refit = [&](model::ModelSpec* model, const std::string& action) {
     model::ModelSpec trial = *model;
-    const auto params = model::MatchParameters(trial, options.diagnose.params);
+    const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
     const double before = comparison.Error(*model);
     fit::FitModel(trial, comparison, params, options.fit);
     const double after = comparison.Error(trial);
@@ -53,13 +53,15 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   {
     // The first fit with a continuation in band (fit::FitModelWithBandContinuation): a whole-stack test
     // fitted on the whole band at once can stop with modes paired to the wrong ones.
-    const auto params = model::MatchParameters(current, options.diagnose.params);
+    const auto params = model::MatchParameters(current, model::WithEffectParameters(options.diagnose.params, current));
     fit::FitModelWithBandContinuation(current, measurement, options.diagnose.comparison, comparison, params, options.fit);
     summary.history.push_back({"fit", "", comparison.Error(current)});
     say("fit: error " + std::to_string(summary.history.back().error));
   }
 
-  std::vector<model::Effect> added;  // with their fitted parameters, in order
+  // The model's effects with their fitted parameters, in order: those of the model as given, then
+  // those the loop adds.
+  std::vector<model::Effect> added = spec.effects;
   summary.stop_reason = "the round limit";
   for (int round = 0; round < options.max_rounds; ++round) {
     if (at_floor(summary.history.back().error)) {
@@ -76,6 +78,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       break;
     }
     const Candidate& best = diagnosis.candidates[0];
+    // The candidate's whole fitted state: its effect, the effects already in the model and the model's
+    // parameters as the diagnosis fitted them together.
     model::ModelSpec with = ApplyCandidate(diagnosis, best);
     const double with_error = comparison.Error(with);
     if (!(with_error < summary.history.back().error)) {
@@ -97,13 +101,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     std::optional<EffectsFit> restart;
     double restart_error = std::numeric_limits<double>::infinity();
     try {
-      restart = FitEffects(spec, comparison, all, options.diagnose.params, eo);
+      restart = FitEffects(model::BaseOf(spec), comparison, all, options.diagnose.params, eo);
       restart_error = comparison.Error(restart->spec);
     } catch (const std::exception&) {
       restart.reset();
     }
-    refit(&with, "refit");
-    added.push_back(best.effect);
+    refit(&with, "refit");  // the model's and every effect's parameters
+    added = with.effects;
     if (restart && restart_error < summary.history.back().error) {
       std::string text;
       for (const auto& e : restart->effects) text += (text.empty() ? "" : " ") + e.ToString();
@@ -113,7 +117,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       say("refit from the model as given: error " + std::to_string(restart_error));
     }
     summary.effects_added.clear();
-    for (const auto& e : added) summary.effects_added.push_back(e.ToString());
+    for (const auto& e : with.effects) summary.effects_added.push_back(e.ToString());
     current = with;
   }
   if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {

@@ -11,6 +11,7 @@
 
 #include "stagefit/common/error.h"
 #include "stagefit/common/units.h"
+#include "stagefit/model/effects.h"
 
 namespace stagefit::fit {
 namespace {
@@ -31,22 +32,136 @@ bool MatchesPattern(const std::string& name, const std::string& pattern) {
   return ::fnmatch(pattern.c_str(), name.c_str(), 0) == 0;
 }
 
+namespace {
+
+bool SameGeometryCorrections(const model::ModelSpec& a, const model::ModelSpec& b) {
+  if (a.geometry_corrections.size() != b.geometry_corrections.size()) return false;
+  for (size_t i = 0; i < a.geometry_corrections.size(); ++i) {
+    const auto& x = a.geometry_corrections[i];
+    const auto& y = b.geometry_corrections[i];
+    if (x.channel != y.channel || x.is_impact != y.is_impact || x.offset_W != y.offset_W || x.rotation_rad != y.rotation_rad) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
+  return a.num_dofs() == b.num_dofs() && a.dof_names == b.dof_names && a.input_names == b.input_names &&
+         a.output_names == b.output_names && a.B0 == b.B0 && a.B2 == b.B2 && a.Cq == b.Cq && a.D0 == b.D0 &&
+         a.delay_s == b.delay_s;
+}
+
+bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
+  return SameCoordinatesAndChannels(a, b) && a.M == b.M && a.C == b.C && a.K == b.K && a.K_loss == b.K_loss;
+}
+
+response::DynamicStiffnessDerivative SystemDifference(const model::SecondOrderSystem& plus,
+                                                      const model::SecondOrderSystem& minus, double h,
+                                                      const std::string& name) {
+  model::SystemDerivative d;
+  d.dM = (plus.M - minus.M) / (2 * h);
+  d.dC = (plus.C - minus.C) / (2 * h);
+  d.dK = (plus.K - minus.K) / (2 * h);
+  d.dK_loss = (plus.K_loss - minus.K_loss) / (2 * h);
+  return response::MakeDynamicStiffnessDerivative(d, name);
+}
+
+ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model::ModelSpec& at,
+                              const model::SecondOrderSystem& at_system, const model::ModelSpec& plus,
+                              const model::ModelSpec& minus, model::SecondOrderSystem* plus_system,
+                              model::SecondOrderSystem* minus_system) {
+  *plus_system = comparison.ModelSystem(plus);
+  *minus_system = comparison.ModelSystem(minus);
+  if (SameGeometryCorrections(at, plus) && SameGeometryCorrections(at, minus) &&
+      SameCoordinatesAndChannels(at_system, *plus_system) && SameCoordinatesAndChannels(at_system, *minus_system)) {
+    return ColumnRoute::kSystemDifference;
+  }
+  if (SameSystem(at_system, *plus_system) && SameSystem(at_system, *minus_system)) return ColumnRoute::kMeasuredDifference;
+  return ColumnRoute::kResidualDifference;
+}
+
 ModelFitProblem::ModelFitProblem(const model::ModelSpec& spec, const compare::Comparison& comparison,
                                  std::vector<model::ParameterInfo> parameters)
-    : spec_(spec), comparison_(&comparison), parameters_(std::move(parameters)) {}
+    : spec_(spec), comparison_(&comparison), parameters_(std::move(parameters)) {
+  for (size_t i = 0; i < parameters_.size(); ++i) {
+    if (model::HasAnalyticDerivative(spec_, parameters_[i])) {
+      analytic_.push_back(static_cast<int>(i));
+      analytic_params_.push_back(parameters_[i]);
+    } else {
+      differenced_.push_back(static_cast<int>(i));
+    }
+  }
+}
+
+double DifferenceStep(const model::ModelSpec& spec, const model::ParameterInfo& info, double value) {
+  // Relative for a log-scale parameter, a millionth of the range for a bounded one.
+  if (info.kind == model::ParameterKind::kEffect) {
+    const model::EffectParameterRange range =
+        model::EffectRange(model::ExpandedBefore(spec, info.effect), spec.effects.at(info.effect), info.effect_parameter);
+    if (range.log_scale && value != 0.0) return 1e-5 * std::abs(value);
+    if (std::isfinite(range.upper - range.lower)) return 1e-6 * (range.upper - range.lower);
+    return 1e-6 * std::max(1.0, std::abs(value));
+  }
+  return value != 0.0 ? 1e-5 * std::abs(value) : 1e-9;
+}
 
 bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals,
                                Eigen::MatrixXd* jacobian) const {
   STAGEFIT_ASSERT(p.size() == num_parameters(), "expected " << num_parameters() << " parameters, got " << p.size());
-  for (int i = 0; i < num_parameters(); ++i) model::SetParameter(spec_, parameters_[i], p[i]);
   try {
-    comparison_->ResidualsAndJacobian(spec_, parameters_, residuals, jacobian, &workspace_);
+    for (int i = 0; i < num_parameters(); ++i) model::SetParameter(spec_, parameters_[i], p[i]);
+    if (jacobian == nullptr || differenced_.empty()) {
+      comparison_->ResidualsAndJacobian(spec_, parameters_, residuals, jacobian, &workspace_);
+      return true;
+    }
+    // Columns of the parameters without an analytic derivative (model/parameters.h): by the cheapest
+    // route exact for each (ColumnRoute), from the specs at p +- h.
+    const int nd = static_cast<int>(differenced_.size());
+    routes_.assign(nd, ColumnRoute::kResidualDifference);
+    std::vector<double> steps(nd);
+    std::vector<model::ModelSpec> plus(nd, spec_), minus(nd, spec_);
+    std::vector<response::DynamicStiffnessDerivative> further;
+    std::vector<int> further_of;
+    const model::SecondOrderSystem at = comparison_->ModelSystem(spec_);
+    for (int k = 0; k < nd; ++k) {
+      const int i = differenced_[k];
+      steps[k] = DifferenceStep(spec_, parameters_[i], p[i]);
+      model::SetParameter(plus[k], parameters_[i], p[i] + steps[k]);
+      model::SetParameter(minus[k], parameters_[i], p[i] - steps[k]);
+      model::SecondOrderSystem sp, sm;
+      routes_[k] = ChooseColumnRoute(*comparison_, spec_, at, plus[k], minus[k], &sp, &sm);
+      if (routes_[k] == ColumnRoute::kSystemDifference) {
+        further.push_back(SystemDifference(sp, sm, steps[k], parameters_[i].name));
+        further_of.push_back(k);
+      }
+    }
+    comparison_->ResidualsAndJacobian(spec_, analytic_params_, further, residuals, &columns_, &workspace_);
+    jacobian->resize(residuals->size(), num_parameters());
+    for (size_t a = 0; a < analytic_.size(); ++a) jacobian->col(analytic_[a]) = columns_.col(static_cast<int>(a));
+    const int na = static_cast<int>(analytic_.size());
+    for (size_t f = 0; f < further_of.size(); ++f) {
+      jacobian->col(differenced_[further_of[f]]) = columns_.col(na + static_cast<int>(f));
+    }
+    for (int k = 0; k < nd; ++k) {
+      if (routes_[k] == ColumnRoute::kSystemDifference) continue;
+      if (routes_[k] == ColumnRoute::kMeasuredDifference) {
+        comparison_->ResidualsWithModelResponse(plus[k], workspace_.frf.values, &r_plus_);
+        comparison_->ResidualsWithModelResponse(minus[k], workspace_.frf.values, &r_minus_);
+      } else {
+        comparison_->ResidualsAndJacobian(plus[k], {}, &r_plus_, nullptr, &difference_workspace_);
+        comparison_->ResidualsAndJacobian(minus[k], {}, &r_minus_, nullptr, &difference_workspace_);
+      }
+      jacobian->col(differenced_[k]) = (r_plus_ - r_minus_) / (2 * steps[k]);
+    }
+    return residuals->allFinite() && jacobian->allFinite();
   } catch (const NumericalError&) {
     return false;
   } catch (const InputError&) {
     return false;
   }
-  return true;
 }
 
 std::unique_ptr<LeastSquaresProblem> ModelFitProblem::Clone() const {
@@ -63,7 +178,15 @@ std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
     s.unit = SiUnit(info.dimension);
     s.initial = model::GetParameter(spec, info);
     s.log_scale = info.positive && s.initial > 0.0;
-    if (s.log_scale) {
+    if (info.kind == model::ParameterKind::kEffect) {
+      // The catalogue entry's range around the value, on the model the effect is applied to.
+      const model::EffectParameterRange range = model::EffectRange(
+          model::ExpandedBefore(spec, info.effect), spec.effects.at(info.effect), info.effect_parameter);
+      s.log_scale = range.log_scale && s.initial > 0.0;
+      s.lower = std::min(range.lower, s.initial);
+      s.upper = std::max(range.upper, s.initial);
+      s.scale = range.scale;
+    } else if (s.log_scale) {
       s.lower = s.initial / kDefaultBoundFactor;
       s.upper = s.initial * kDefaultBoundFactor;
     } else if (info.positive) {

@@ -12,7 +12,10 @@ namespace {
 
 constexpr double kDefaultZeta = 0.02;  // damping ratio given to new springs (extra body, servo)
 
-const EffectParameterSpec P(const std::string& n, Dimension d, bool positive, const std::string& doc) {
+using Getter = std::function<double(const std::string&)>;
+using Params = std::map<std::string, double>;
+
+EffectParameterSpec P(const std::string& n, Dimension d, bool positive, const std::string& doc) {
   return EffectParameterSpec{n, d, positive, doc};
 }
 
@@ -20,6 +23,18 @@ std::string Num(double v) {
   char b[40];
   std::snprintf(b, sizeof b, "%.17g", v);
   return b;
+}
+
+template <typename... Args>
+std::string Format(const char* format, Args... args) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof buffer, format, args...);
+  return buffer;
+}
+
+double Get(const Effect& e, const char* key) {
+  auto it = e.parameters.find(key);
+  return it == e.parameters.end() ? 0.0 : it->second;
 }
 
 /// "joint.Dof" -> (joint index, dof); "joint.A-B" -> (joint, A, B).
@@ -103,6 +118,330 @@ void CheckRange(const std::string& effect, const std::string& param, double v, d
   }
 }
 
+// The ranges (EffectDefinition::range). A length: a channel's position is known to a few
+// centimetres (it is measured on the structure); the larger range of a stiffness centre or a
+// payload's offset let a correction of a channel that is right mimic another channel's turn in
+// compliance space (docs/diagnose.md). A positive parameter: a log scale within a factor around its
+// value.
+EffectParameterRange LengthRange(double range) {
+  EffectParameterRange r;
+  r.lower = -range;
+  r.upper = range;
+  return r;
+}
+
+EffectParameterRange LogRange(double value, double factor) {
+  EffectParameterRange r;
+  if (!(value > 0)) {
+    r.lower = 0.0;
+    return r;
+  }
+  r.log_scale = true;
+  r.lower = value / factor;
+  r.upper = value * factor;
+  return r;
+}
+
+EffectParameterRange DefaultRange(const ModelSpec&, const Effect& e, const EffectParameterSpec& p) {
+  if (p.dimension == dim::kLength) return LengthRange(0.3);
+  if (p.dimension == dim::kAngle) return LengthRange(kMaxCorrectionTurn);
+  if (p.positive) return LogRange(Get(e, p.name.c_str()), 1e3);
+  return {};
+}
+
+EffectParameterRange MassRange(const ModelSpec& spec, const Effect& e, const EffectParameterSpec& p) {
+  EffectParameterRange r = DefaultRange(spec, e, p);
+  if (p.name == "mass" && e.name == "payload" && r.log_scale) r.upper = std::min(r.upper, 20.0 * Get(e, "mass"));
+  return r;
+}
+
+// ---- the entries' edits ----
+
+void ApplyPayload(ModelSpec& spec, const Effect& e, const Getter& get) {
+  BodySpec& b = spec.bodies[RequireBody(spec, e.location, e.name)];
+  const double m = get("mass");
+  CheckRange(e.name, "mass", m, 0.0, 1e6);
+  AddMass(b, m, b.com_W + Eigen::Vector3d(get("x"), get("y"), get("z")), 0.0);
+}
+
+void ApplyExtraBody(ModelSpec& spec, const Effect& e, const Getter& get) {
+  const int host = RequireBody(spec, e.location, e.name);
+  const double m = get("mass"), k = get("k"), kr = get("kr");
+  CheckRange(e.name, "mass", m, 1e-9, 1e6);
+  CheckRange(e.name, "k", k, 0.0, 1e14);
+  CheckRange(e.name, "kr", kr, 0.0, 1e14);
+  BodySpec body;
+  body.name = UniqueName(spec, e.location + "_extra");
+  body.mass_kg = m;
+  body.com_W = spec.bodies[host].com_W + Eigen::Vector3d(0, 0, get("z"));
+  const double radius = 0.05;  // radius of gyration of the new body, m
+  body.inertia_com_W = m * radius * radius * Eigen::Matrix3d::Identity();
+  body.note = "added by effect " + e.name + "@" + e.location;
+  JointSpec joint;
+  joint.name = body.name;
+  joint.parent = e.location;
+  joint.child = body.name;
+  joint.origin_W = body.com_W;
+  for (int i = 0; i < 6; ++i) {
+    const double stiffness = i < 3 ? k : kr;
+    const double inertia = i < 3 ? m : m * radius * radius;
+    joint.stiffness[i] = stiffness;
+    joint.damping[i] = 2 * kDefaultZeta * std::sqrt(stiffness * inertia);
+  }
+  joint.note = body.note;
+  spec.bodies.push_back(body);
+  spec.joints.push_back(joint);
+}
+
+void ApplyServo(ModelSpec& spec, const Effect& e, const Getter& get) {
+  JointDofLocation l = ParseJointDof(spec, e.location, e.name);
+  JointSpec& j = spec.joints[l.joint];
+  if (!j.imposed[index(l.a)]) throw InputError("effect servo-stiffness: " + e.location + " is not an imposed DoF");
+  const double k = get("k"), zeta = get("zeta");
+  CheckRange(e.name, "k", k, 0.0, 1e14);
+  CheckRange(e.name, "zeta", zeta, 0.0, 10.0);
+  const BodySpec& child = spec.bodies[FindBody(spec, j.child)];
+  const Eigen::Vector3d axis = j.R_WJ.col(index(l.a) % 3);
+  const double inertia = is_rotation(l.a) ? axis.dot(child.inertia_com_W * axis) : child.mass_kg;
+  j.imposed[index(l.a)] = false;
+  j.stiffness[index(l.a)] = k;
+  j.damping[index(l.a)] = 2 * zeta * std::sqrt(k * inertia);
+}
+
+void ApplyJointOffset(ModelSpec& spec, const Effect& e, const Getter& get) {
+  JointSpec& j = spec.joints[RequireJoint(spec, e.location, e.name)];
+  j.origin_W += Eigen::Vector3d(get("dx"), get("dy"), get("dz"));
+}
+
+void ApplyCoupling(ModelSpec& spec, const Effect& e, const Getter& get) {
+  JointDofLocation l = ParseJointDof(spec, e.location, e.name);
+  if (!l.pair || l.a == l.b) throw InputError("effect coupled-stiffness: location '" + e.location + "' must be <joint>.<A>-<B>");
+  JointSpec& j = spec.joints[l.joint];
+  for (auto& c : j.couplings) {
+    if ((c.a == l.a && c.b == l.b) || (c.a == l.b && c.b == l.a)) {
+      c.stiffness += get("k");
+      return;
+    }
+  }
+  j.couplings.push_back({l.a, l.b, get("k"), 0.0});
+}
+
+void ApplyStructuralDamping(ModelSpec& spec, const Effect& e, const Getter& get) {
+  JointSpec& j = spec.joints[RequireJoint(spec, e.location, e.name)];
+  const double eta = get("eta");
+  CheckRange(e.name, "eta", eta, 0.0, 10.0);
+  for (int i = 0; i < 6; ++i) {
+    if (j.imposed[i]) continue;
+    j.loss_factor[i] = eta;
+    j.damping[i] = 0.0;
+  }
+  for (auto& c : j.couplings) c.damping = 0.0;
+}
+
+/// A channel's correction: offsets add, rotations compose (the effect's rotation after the one the
+/// channel already has), and the result is kept as Euler XYZ angles.
+void ApplySensorGeometry(ModelSpec& spec, const Effect& e, const Getter& get) {
+  const Eigen::Vector3d offset(get("dx"), get("dy"), get("dz"));
+  const Eigen::Matrix3d turn = kinematics::RotationFromEuler({get("rx"), get("ry"), get("rz")});
+  GeometryCorrection* g = nullptr;
+  for (auto& existing : spec.geometry_corrections) {
+    if (existing.channel == e.location) g = &existing;
+  }
+  if (g == nullptr) {
+    GeometryCorrection fresh;
+    fresh.channel = e.location;
+    for (const auto& x : spec.excitations) fresh.is_impact = fresh.is_impact || x.name == e.location;
+    spec.geometry_corrections.push_back(fresh);
+    g = &spec.geometry_corrections.back();
+  }
+  const Eigen::Matrix3d before = kinematics::RotationFromEuler({g->rotation_rad(0), g->rotation_rad(1), g->rotation_rad(2)});
+  const kinematics::EulerXyz after = kinematics::EulerFromRotation(turn * before);
+  g->offset_W += offset;
+  g->rotation_rad = Eigen::Vector3d(after.alpha_rad, after.beta_rad, after.gamma_rad);
+  for (auto* list : {&spec.sensors, &spec.excitations}) {
+    for (auto& p : *list) {
+      if (p.name != e.location) continue;
+      p.position_W += offset;
+      p.direction_W = turn * p.direction_W;
+    }
+  }
+}
+
+void ApplyDelay(ModelSpec& spec, const Effect& e, const Getter& get) {
+  const double tau = get("tau");
+  CheckRange(e.name, "tau", tau, 0.0, 1.0);
+  spec.acquisition_delay_s += tau;
+}
+
+void ApplyGyroscopic(ModelSpec& spec, const Effect& e, const Getter& get) {
+  spec.joints[RequireJoint(spec, e.location, e.name)].spin_rate_rad_s = get("spin");
+}
+
+std::vector<EffectDefinition> MakeCatalogue() {
+  std::vector<EffectDefinition> c;
+  {
+    EffectDefinition d{"payload", "a rigid mass fixed to a body (its mass, CoM and inertia change)", "body",
+                       {P("mass", dim::kMass, true, "added mass, kg"), P("x", dim::kLength, false, "CoM offset from the body's CoM, m"),
+                        P("y", dim::kLength, false, "m"), P("z", dim::kLength, false, "m")}};
+    d.defaults = [](const ModelSpec& spec, const std::string& location) {
+      const BodySpec& b = spec.bodies[RequireBody(spec, location, "payload")];
+      return Params{{"mass", 0.1 * b.mass_kg}, {"x", 0.0}, {"y", 0.0}, {"z", 0.0}};
+    };
+    d.apply = ApplyPayload;
+    d.range = MassRange;
+    d.explain = [](const Effect& e) {
+      return Format("a payload of about %.1f kg, %.0f mm above", Get(e, "mass"), 1e3 * Get(e, "z")) + " the centre of mass of " +
+             e.location + Format(" (%.0f mm off-axis)", 1e3 * std::hypot(Get(e, "x"), Get(e, "y")));
+    };
+    d.adds_mass = true;
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"extra-body", "a new body joined to an existing one by a compliant 6-DoF joint (a local mode)", "body",
+                       {P("mass", dim::kMass, true, "mass of the new body, kg"),
+                        P("k", dim::kTranslationalStiffness, true, "stiffness of the new joint in Dx, Dy, Dz, N/m"),
+                        P("kr", dim::kRotationalStiffness, true, "stiffness in Rx, Ry, Rz, Nm/rad"),
+                        P("z", dim::kLength, false, "height of the new body above the host's CoM, m")}};
+    d.defaults = [](const ModelSpec& spec, const std::string& location) {
+      const BodySpec& b = spec.bodies[RequireBody(spec, location, "extra-body")];
+      const double m = 0.1 * b.mass_kg;
+      const double w = 2 * M_PI * 100.0;  // a local mode near 100 Hz to start from
+      return Params{{"mass", m}, {"k", m * w * w}, {"kr", m * 0.01 * w * w}, {"z", 0.0}};
+    };
+    d.apply = ApplyExtraBody;
+    d.range = MassRange;
+    d.explain = [](const Effect& e) {
+      const double f = std::sqrt(Get(e, "k") / Get(e, "mass")) / (2 * M_PI);
+      return Format("a body of about %.1f kg", Get(e, "mass")) + " attached to " + e.location +
+             Format(" by a compliant joint: a local mode near %.0f Hz", f);
+    };
+    d.adds_mass = true;
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"servo-stiffness", "an imposed DoF becomes a finite spring/damper (drive or servo compliance)",
+                       "joint.DoF (imposed)",
+                       {P("k", dim::kDimensionless, true, "stiffness, N/m or Nm/rad"),
+                        P("zeta", dim::kDimensionless, true, "damping ratio of the spring with the child's mass")}};
+    d.defaults = [](const ModelSpec& spec, const std::string& location) {
+      JointDofLocation l = ParseJointDof(spec, location, "servo-stiffness");
+      return Params{{"k", TypicalStiffness(spec.joints[l.joint], is_rotation(l.a))}, {"zeta", kDefaultZeta}};
+    };
+    d.apply = ApplyServo;
+    d.range = [](const ModelSpec&, const Effect& e, const EffectParameterSpec& p) {
+      return LogRange(Get(e, p.name.c_str()), p.name == "zeta" ? 30.0 : 1e3);
+    };
+    d.explain = [](const Effect& e) {
+      return "the drive of " + e.location + " is not rigid: it behaves as a spring of " + Format("%.3g", Get(e, "k")) +
+             " (N/m or Nm/rad)";
+    };
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"joint-offset", "a joint's origin moved (its stiffness centre is not where assumed)", "joint",
+                       {P("dx", dim::kLength, false, "m"), P("dy", dim::kLength, false, "m"), P("dz", dim::kLength, false, "m")}};
+    d.defaults = [](const ModelSpec&, const std::string&) { return Params{{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}}; };
+    d.apply = ApplyJointOffset;
+    d.range = DefaultRange;
+    d.explain = [](const Effect& e) {
+      return "the stiffness centre of joint " + e.location +
+             Format(" is offset by (%.0f, %.0f, %.0f) mm", 1e3 * Get(e, "dx"), 1e3 * Get(e, "dy"), 1e3 * Get(e, "dz")) +
+             " from where the model puts it";
+    };
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"coupled-stiffness", "an off-diagonal stiffness term between two free DoF of a joint", "joint.A-B",
+                       {P("k", dim::kDimensionless, false, "coupling stiffness, N/m, Nm/rad or N/rad")}};
+    d.defaults = [](const ModelSpec&, const std::string&) { return Params{{"k", 0.0}}; };
+    d.apply = ApplyCoupling;
+    // |k_ab| < sqrt(k_aa k_bb) keeps the joint positive definite; scaled by the bound (N/m to Nm/rad:
+    // its Jacobian column is far below 1 per unit, fit::ParameterSpec::scale).
+    d.range = [](const ModelSpec& spec, const Effect& e, const EffectParameterSpec&) {
+      JointDofLocation l = ParseJointDof(spec, e.location, e.name);
+      const JointSpec& joint = spec.joints[l.joint];
+      const double limit = 0.95 * std::sqrt(joint.stiffness[index(l.a)] * joint.stiffness[index(l.b)]);
+      EffectParameterRange r;
+      r.lower = -limit;
+      r.upper = limit;
+      r.scale = limit > 0 ? limit : 1.0;
+      return r;
+    };
+    d.explain = [](const Effect& e) {
+      const auto dot = e.location.rfind('.');
+      return "joint " + e.location.substr(0, dot) + " couples " + e.location.substr(dot + 1, 2) + " and " +
+             e.location.substr(dot + 4, 2) + Format(" (coupling stiffness %.3g)", Get(e, "k"));
+    };
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"structural-damping", "frequency-independent (hysteretic) loss in a joint instead of viscous damping",
+                       "joint", {P("eta", dim::kDimensionless, true, "loss factor")}};
+    d.defaults = [](const ModelSpec&, const std::string&) { return Params{{"eta", 0.02}}; };
+    d.apply = ApplyStructuralDamping;
+    d.range = [](const ModelSpec&, const Effect& e, const EffectParameterSpec&) { return LogRange(Get(e, "eta"), 30.0); };
+    d.explain = [](const Effect& e) {
+      return "joint " + e.location + Format(" dissipates as a hysteretic loss factor of %.3f", Get(e, "eta")) +
+             " rather than as viscous damping";
+    };
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"sensor-geometry", "a sensor or impact position/orientation error", "channel",
+                       {P("dx", dim::kLength, false, "m"), P("dy", dim::kLength, false, "m"), P("dz", dim::kLength, false, "m"),
+                        P("rx", dim::kAngle, false, "rad"), P("ry", dim::kAngle, false, "rad"), P("rz", dim::kAngle, false, "rad")}};
+    d.defaults = [](const ModelSpec&, const std::string&) {
+      return Params{{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}, {"rx", 0.0}, {"ry", 0.0}, {"rz", 0.0}};
+    };
+    d.apply = ApplySensorGeometry;
+    d.range = [](const ModelSpec&, const Effect&, const EffectParameterSpec& p) {
+      return p.dimension == dim::kLength ? LengthRange(0.05) : LengthRange(kMaxCorrectionTurn);
+    };
+    d.explain = [](const Effect& e) {
+      return "channel " + e.location +
+             Format(" is not where declared: offset (%.1f, %.1f, %.1f) mm", 1e3 * Get(e, "dx"), 1e3 * Get(e, "dy"), 1e3 * Get(e, "dz")) +
+             Format(", rotated by (%.1f, %.1f, %.1f) deg", Get(e, "rx") * 180 / M_PI, Get(e, "ry") * 180 / M_PI,
+                    Get(e, "rz") * 180 / M_PI);
+    };
+    d.measured_side_only = true;
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"delay", "a pure time delay in the acquisition chain", "acquisition",
+                       {P("tau", dim::kTime, true, "delay, s")}};
+    d.defaults = [](const ModelSpec&, const std::string&) { return Params{{"tau", 1e-4}}; };
+    d.apply = ApplyDelay;
+    d.range = [](const ModelSpec&, const Effect& e, const EffectParameterSpec&) { return LogRange(Get(e, "tau"), 100.0); };
+    d.explain = [](const Effect& e) { return Format("the acquisition chain delays the signals by %.3f ms", 1e3 * Get(e, "tau")); };
+    c.push_back(d);
+  }
+  {
+    EffectDefinition d{"gyroscopic", "spindle rotation at a given speed (gyroscopic terms of the spinning subtree)", "joint",
+                       {P("spin", dim::kAngularVelocity, false, "spin rate about the joint's z axis, rad/s")}};
+    d.defaults = [](const ModelSpec&, const std::string&) { return Params{{"spin", 2 * M_PI}}; };
+    d.apply = ApplyGyroscopic;
+    d.range = [](const ModelSpec&, const Effect&, const EffectParameterSpec&) { return LengthRange(1000.0); };
+    d.explain = [](const Effect& e) {
+      return "the subtree above joint " + e.location + Format(" spins at %.1f rpm", Get(e, "spin") * 60 / (2 * M_PI));
+    };
+    d.set_by_experiment = true;
+    c.push_back(d);
+  }
+  return c;
+}
+
+/// Applies the edit alone (no bookkeeping of spec.effects / spec.base).
+void ApplyEdit(ModelSpec& spec, const Effect& e) {
+  const EffectDefinition& def = FindEffectDefinition(e.name);
+  auto get = [&](const std::string& key) {
+    auto it = e.parameters.find(key);
+    if (it == e.parameters.end()) throw InputError("effect " + e.name + ": parameter '" + key + "' is missing");
+    if (!std::isfinite(it->second)) throw InputError("effect " + e.name + ": parameter '" + key + "' is not finite");
+    return it->second;
+  };
+  def.apply(spec, e, get);
+}
+
 }  // namespace
 
 std::string Effect::ToString() const {
@@ -119,33 +458,7 @@ std::string Effect::ToString() const {
 }
 
 const std::vector<EffectDefinition>& EffectCatalogue() {
-  static const std::vector<EffectDefinition> catalogue = {
-      {"payload", "a rigid mass fixed to a body (its mass, CoM and inertia change)", "body",
-       {P("mass", dim::kMass, true, "added mass, kg"), P("x", dim::kLength, false, "CoM offset from the body's CoM, m"),
-        P("y", dim::kLength, false, "m"), P("z", dim::kLength, false, "m")}},
-      {"extra-body", "a new body joined to an existing one by a compliant 6-DoF joint (a local mode)", "body",
-       {P("mass", dim::kMass, true, "mass of the new body, kg"),
-        P("k", dim::kTranslationalStiffness, true, "stiffness of the new joint in Dx, Dy, Dz, N/m"),
-        P("kr", dim::kRotationalStiffness, true, "stiffness in Rx, Ry, Rz, Nm/rad"),
-        P("z", dim::kLength, false, "height of the new body above the host's CoM, m")}},
-      {"servo-stiffness", "an imposed DoF becomes a finite spring/damper (drive or servo compliance)",
-       "joint.DoF (imposed)",
-       {P("k", dim::kDimensionless, true, "stiffness, N/m or Nm/rad"),
-        P("zeta", dim::kDimensionless, true, "damping ratio of the spring with the child's mass")}},
-      {"joint-offset", "a joint's origin moved (its stiffness centre is not where assumed)", "joint",
-       {P("dx", dim::kLength, false, "m"), P("dy", dim::kLength, false, "m"), P("dz", dim::kLength, false, "m")}},
-      {"coupled-stiffness", "an off-diagonal stiffness term between two free DoF of a joint", "joint.A-B",
-       {P("k", dim::kDimensionless, false, "coupling stiffness, N/m, Nm/rad or N/rad")}},
-      {"structural-damping", "frequency-independent (hysteretic) loss in a joint instead of viscous damping",
-       "joint", {P("eta", dim::kDimensionless, true, "loss factor")}},
-      {"sensor-geometry", "a sensor or impact position/orientation error", "channel",
-       {P("dx", dim::kLength, false, "m"), P("dy", dim::kLength, false, "m"), P("dz", dim::kLength, false, "m"),
-        P("rx", dim::kAngle, false, "rad"), P("ry", dim::kAngle, false, "rad"), P("rz", dim::kAngle, false, "rad")}},
-      {"delay", "a pure time delay in the acquisition chain", "acquisition",
-       {P("tau", dim::kTime, true, "delay, s")}},
-      {"gyroscopic", "spindle rotation at a given speed (gyroscopic terms of the spinning subtree)", "joint",
-       {P("spin", dim::kAngularVelocity, false, "spin rate about the joint's z axis, rad/s")}},
-  };
+  static const std::vector<EffectDefinition> catalogue = MakeCatalogue();
   return catalogue;
 }
 
@@ -192,35 +505,18 @@ std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::strin
 
 std::map<std::string, double> DefaultEffectParameters(const ModelSpec& spec, const std::string& name,
                                                       const std::string& location) {
-  std::map<std::string, double> p;
-  if (name == "payload") {
-    const BodySpec& b = spec.bodies[RequireBody(spec, location, name)];
-    p = {{"mass", 0.1 * b.mass_kg}, {"x", 0.0}, {"y", 0.0}, {"z", 0.0}};
-  } else if (name == "extra-body") {
-    const BodySpec& b = spec.bodies[RequireBody(spec, location, name)];
-    const double m = 0.1 * b.mass_kg;
-    const double w = 2 * M_PI * 100.0;  // a local mode near 100 Hz to start from
-    p = {{"mass", m}, {"k", m * w * w}, {"kr", m * 0.01 * w * w}, {"z", 0.0}};
-  } else if (name == "servo-stiffness") {
-    JointDofLocation l = ParseJointDof(spec, location, name);
-    p = {{"k", TypicalStiffness(spec.joints[l.joint], is_rotation(l.a))}, {"zeta", kDefaultZeta}};
-  } else if (name == "joint-offset") {
-    p = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}};
-  } else if (name == "coupled-stiffness") {
-    p = {{"k", 0.0}};
-  } else if (name == "structural-damping") {
-    p = {{"eta", 0.02}};
-  } else if (name == "sensor-geometry") {
-    p = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}, {"rx", 0.0}, {"ry", 0.0}, {"rz", 0.0}};
-  } else if (name == "delay") {
-    p = {{"tau", 1e-4}};
-  } else if (name == "gyroscopic") {
-    p = {{"spin", 2 * M_PI}};
-  } else {
-    FindEffectDefinition(name);
-  }
-  return p;
+  return FindEffectDefinition(name).defaults(spec, location);
 }
+
+EffectParameterRange EffectRange(const ModelSpec& before, const Effect& effect, const std::string& parameter) {
+  const EffectDefinition& def = FindEffectDefinition(effect.name);
+  for (const auto& p : def.parameters) {
+    if (p.name == parameter) return def.range(before, effect, p);
+  }
+  throw InputError("effect " + effect.name + " has no parameter '" + parameter + "'");
+}
+
+std::string ExplainEffect(const Effect& effect) { return FindEffectDefinition(effect.name).explain(effect); }
 
 Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::vector<std::string>& channels) {
   const std::string what = "--with '" + text + "'";
@@ -273,118 +569,57 @@ Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::ve
   return e;
 }
 
-void ApplyEffect(ModelSpec& spec, const Effect& e) {
-  auto get = [&](const std::string& key) {
-    auto it = e.parameters.find(key);
-    if (it == e.parameters.end()) throw InputError("effect " + e.name + ": parameter '" + key + "' is missing");
-    if (!std::isfinite(it->second)) throw InputError("effect " + e.name + ": parameter '" + key + "' is not finite");
-    return it->second;
-  };
-  if (e.name == "payload") {
-    BodySpec& b = spec.bodies[RequireBody(spec, e.location, e.name)];
-    const double m = get("mass");
-    CheckRange(e.name, "mass", m, 0.0, 1e6);
-    AddMass(b, m, b.com_W + Eigen::Vector3d(get("x"), get("y"), get("z")), 0.0);
-  } else if (e.name == "extra-body") {
-    const int host = RequireBody(spec, e.location, e.name);
-    const double m = get("mass"), k = get("k"), kr = get("kr");
-    CheckRange(e.name, "mass", m, 1e-9, 1e6);
-    CheckRange(e.name, "k", k, 0.0, 1e14);
-    CheckRange(e.name, "kr", kr, 0.0, 1e14);
-    BodySpec body;
-    body.name = UniqueName(spec, e.location + "_extra");
-    body.mass_kg = m;
-    body.com_W = spec.bodies[host].com_W + Eigen::Vector3d(0, 0, get("z"));
-    const double radius = 0.05;  // radius of gyration of the new body, m
-    body.inertia_com_W = m * radius * radius * Eigen::Matrix3d::Identity();
-    body.note = "added by effect " + e.ToString();
-    JointSpec joint;
-    joint.name = body.name;
-    joint.parent = e.location;
-    joint.child = body.name;
-    joint.origin_W = body.com_W;
-    for (int i = 0; i < 6; ++i) {
-      const double stiffness = i < 3 ? k : kr;
-      const double inertia = i < 3 ? m : m * radius * radius;
-      joint.stiffness[i] = stiffness;
-      joint.damping[i] = 2 * kDefaultZeta * std::sqrt(stiffness * inertia);
-    }
-    joint.note = body.note;
-    spec.bodies.push_back(body);
-    spec.joints.push_back(joint);
-  } else if (e.name == "servo-stiffness") {
-    JointDofLocation l = ParseJointDof(spec, e.location, e.name);
-    JointSpec& j = spec.joints[l.joint];
-    if (!j.imposed[index(l.a)]) {
-      throw InputError("effect servo-stiffness: " + e.location + " is not an imposed DoF");
-    }
-    const double k = get("k"), zeta = get("zeta");
-    CheckRange(e.name, "k", k, 0.0, 1e14);
-    CheckRange(e.name, "zeta", zeta, 0.0, 10.0);
-    const BodySpec& child = spec.bodies[FindBody(spec, j.child)];
-    const Eigen::Vector3d axis = j.R_WJ.col(index(l.a) % 3);
-    const double inertia = is_rotation(l.a) ? axis.dot(child.inertia_com_W * axis) : child.mass_kg;
-    j.imposed[index(l.a)] = false;
-    j.stiffness[index(l.a)] = k;
-    j.damping[index(l.a)] = 2 * zeta * std::sqrt(k * inertia);
-  } else if (e.name == "joint-offset") {
-    JointSpec& j = spec.joints[RequireJoint(spec, e.location, e.name)];
-    j.origin_W += Eigen::Vector3d(get("dx"), get("dy"), get("dz"));
-  } else if (e.name == "coupled-stiffness") {
-    JointDofLocation l = ParseJointDof(spec, e.location, e.name);
-    if (!l.pair || l.a == l.b) throw InputError("effect coupled-stiffness: location '" + e.location + "' must be <joint>.<A>-<B>");
-    JointSpec& j = spec.joints[l.joint];
-    bool found = false;
-    for (auto& c : j.couplings) {
-      if ((c.a == l.a && c.b == l.b) || (c.a == l.b && c.b == l.a)) {
-        c.stiffness += get("k");
-        found = true;
-      }
-    }
-    if (!found) j.couplings.push_back({l.a, l.b, get("k"), 0.0});
-  } else if (e.name == "structural-damping") {
-    JointSpec& j = spec.joints[RequireJoint(spec, e.location, e.name)];
-    const double eta = get("eta");
-    CheckRange(e.name, "eta", eta, 0.0, 10.0);
-    for (int i = 0; i < 6; ++i) {
-      if (j.imposed[i]) continue;
-      j.loss_factor[i] = eta;
-      j.damping[i] = 0.0;
-    }
-    for (auto& c : j.couplings) c.damping = 0.0;
-  } else if (e.name == "sensor-geometry") {
-    GeometryCorrection g;
-    g.channel = e.location;
-    g.is_impact = false;
-    for (const auto& x : spec.excitations) g.is_impact = g.is_impact || x.name == e.location;
-    g.offset_W = Eigen::Vector3d(get("dx"), get("dy"), get("dz"));
-    g.rotation_rad = Eigen::Vector3d(get("rx"), get("ry"), get("rz"));
-    bool merged = false;
-    for (auto& existing : spec.geometry_corrections) {
-      if (existing.channel == g.channel) {
-        existing.offset_W += g.offset_W;
-        existing.rotation_rad += g.rotation_rad;
-        merged = true;
-      }
-    }
-    if (!merged) spec.geometry_corrections.push_back(g);
-    for (auto* list : {&spec.sensors, &spec.excitations}) {
-      for (auto& p : *list) {
-        if (p.name != e.location) continue;
-        p.position_W += g.offset_W;
-        p.direction_W = kinematics::RotationFromEuler({g.rotation_rad(0), g.rotation_rad(1), g.rotation_rad(2)}) * p.direction_W;
-      }
-    }
-  } else if (e.name == "delay") {
-    const double tau = get("tau");
-    CheckRange(e.name, "tau", tau, 0.0, 1.0);
-    spec.acquisition_delay_s += tau;
-  } else if (e.name == "gyroscopic") {
-    spec.joints[RequireJoint(spec, e.location, e.name)].spin_rate_rad_s = get("spin");
-  } else {
-    FindEffectDefinition(e.name);
+void ApplyEffect(ModelSpec& spec, const Effect& effect) {
+  FindEffectDefinition(effect.name);
+  ModelSpec edited = spec;  // nothing changes when the edit throws
+  if (!edited.base) {
+    auto base = std::make_shared<ModelSpec>(spec);
+    base->history.clear();
+    edited.base = base;
   }
-  spec.effects.push_back(e.ToString());
+  ApplyEdit(edited, effect);
+  edited.effects.push_back(effect);
+  spec = std::move(edited);
+}
+
+ModelSpec ExpandEffects(const ModelSpec& base, const std::vector<Effect>& effects) {
+  STAGEFIT_ASSERT(base.effects.empty() && !base.base, "ExpandEffects needs a description without effects");
+  ModelSpec spec = base;
+  if (effects.empty()) return spec;
+  auto shared = std::make_shared<ModelSpec>(base);
+  shared->history.clear();
+  spec.base = shared;
+  for (const Effect& e : effects) {
+    ApplyEdit(spec, e);
+    spec.effects.push_back(e);
+  }
+  return spec;
+}
+
+void SetEffects(ModelSpec& spec, std::vector<Effect> effects) {
+  if (!spec.base) {
+    for (const Effect& e : effects) ApplyEffect(spec, e);
+    return;
+  }
+  ModelSpec expanded = *spec.base;
+  for (const Effect& e : effects) ApplyEdit(expanded, e);
+  expanded.effects = std::move(effects);
+  expanded.base = spec.base;
+  expanded.history = std::move(spec.history);
+  expanded.baked_effects = std::move(spec.baked_effects);
+  expanded.name = std::move(spec.name);
+  expanded.description = std::move(spec.description);
+  if (expanded.effects.empty()) expanded.base.reset();
+  spec = std::move(expanded);
+}
+
+const ModelSpec& BaseOf(const ModelSpec& spec) { return spec.base ? *spec.base : spec; }
+
+ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count) {
+  if (!spec.base) return spec;
+  ModelSpec out = *spec.base;
+  for (size_t k = 0; k < count && k < spec.effects.size(); ++k) ApplyEffect(out, spec.effects[k]);
+  return out;
 }
 
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels) {

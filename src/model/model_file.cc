@@ -2,6 +2,7 @@
 
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "stagefit/common/error.h"
 #include "stagefit/common/units.h"
 #include "stagefit/kinematics/rigid_transform.h"
+#include "stagefit/model/effects.h"
 
 namespace stagefit::model {
 
@@ -344,7 +346,7 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
   Reader r(source);
   ModelSpec spec;
   r.CheckKeys(root, "model file", {"model", "ground", "acquisition", "body", "joint", "frame", "sensor", "excitation",
-                                   "geometry_correction", "history"});
+                                   "geometry_correction", "effect", "history"});
   if (const toml::table* m = root["model"].as_table()) {
     r.CheckKeys(*m, "[model]", {"name", "description", "compliance_frame", "effects"});
     spec.name = r.String(*m, "name", "[model]", false);
@@ -353,7 +355,7 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
     if (const toml::node* e = m->get("effects")) {
       if (const toml::array* a = e->as_array()) {
         for (const auto& x : *a) {
-          if (auto s = x.value<std::string>()) spec.effects.push_back(*s);
+          if (auto s = x.value<std::string>()) spec.baked_effects.push_back(*s);
           else r.Error(&x, "[model]: effects must be strings");
         }
       } else {
@@ -431,9 +433,74 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
       spec.history.push_back(entry);
     }
   }
+  // [[effect]]: name, location and the parameters of the catalogue entry (SI numbers or strings with
+  // units); applied to the description above, in order, once it is valid.
+  std::vector<std::pair<Effect, const toml::node*>> effects;
+  if (auto* list = r.ArrayOfTables(root, "effect")) {
+    int k = 0;
+    for (const auto& node : *list) {
+      const toml::table& t = *node.as_table();
+      const std::string item = "[[effect]] #" + std::to_string(++k);
+      Effect e;
+      e.name = r.String(t, "name", item, true);
+      e.location = r.String(t, "location", item, true);
+      const EffectDefinition* def = nullptr;
+      for (const auto& d : EffectCatalogue()) {
+        if (d.name == e.name) def = &d;
+      }
+      if (!def) {
+        if (!e.name.empty()) {
+          std::string names;
+          for (const auto& d : EffectCatalogue()) names += (names.empty() ? "" : ", ") + d.name;
+          r.Error(t.get("name"), item + ": name = '" + e.name + "' is not an effect of the catalogue (" + names + ")");
+        }
+        continue;
+      }
+      std::vector<std::string_view> allowed = {"name", "location"};
+      for (const auto& p : def->parameters) allowed.push_back(p.name);
+      for (const auto& [key, value] : t) {
+        if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
+        std::string names;
+        for (const auto& p : def->parameters) names += (names.empty() ? "" : ", ") + p.name;
+        r.Error(&value, item + " (" + e.name + "): unknown key '" + std::string(key.str()) + "', expected name, location or " +
+                            "a parameter of " + e.name + " (" + names + ")");
+      }
+      for (const auto& p : def->parameters) {
+        const toml::node* v = t.get(p.name);
+        if (!v) continue;  // the catalogue's default at the location, filled in below
+        const std::string context = item + " (" + e.name + "): " + p.name;
+        if (p.dimension == dim::kDimensionless && v->is_string()) {
+          try {
+            e.parameters[p.name] = ParseQuantity(*v->value<std::string>(), context).value;  // any stiffness unit
+          } catch (const InputError& error) {
+            r.Error(v, error.what());
+          }
+        } else {
+          e.parameters[p.name] = r.Quantity(v, p.dimension, context);
+        }
+      }
+      effects.emplace_back(e, &node);
+    }
+  }
   std::vector<std::string> errors = r.errors();
   if (errors.empty()) {
     for (const auto& e : ValidateModel(spec)) errors.push_back(source + ": " + e);
+  }
+  if (errors.empty()) {
+    for (const auto& [e, node] : effects) {
+      Effect effect = e;
+      try {
+        const auto defaults = DefaultEffectParameters(spec, effect.name, effect.location);
+        for (const auto& [key, value] : defaults) effect.parameters.emplace(key, value);
+        ApplyEffect(spec, effect);
+      } catch (const InputError& error) {
+        errors.push_back(r.Where(node) + ": [[effect]] " + effect.name + "@" + effect.location + ": " + error.what());
+        break;
+      }
+    }
+    if (errors.empty() && !spec.effects.empty()) {
+      for (const auto& e : ValidateModel(spec)) errors.push_back(source + ": with its effects applied: " + e);
+    }
   }
   if (!errors.empty()) {
     std::ostringstream out;
@@ -453,26 +520,28 @@ ModelSpec ReadModelFile(const std::filesystem::path& path) {
 }
 
 std::string WriteModelToml(const ModelSpec& spec) {
+  // With effects: the base description, then the effects that expand it ([[effect]]).
+  const ModelSpec& d = BaseOf(spec);
   std::ostringstream out;
   out << "# stagefit model file (format: docs/model-file.md). SI units unless a unit string is given.\n\n";
   out << "[model]\nname = " << Quote(spec.name) << "\n";
   if (!spec.description.empty()) out << "description = " << Quote(spec.description) << "\n";
   out << "compliance_frame = " << Quote(spec.compliance_frame) << "\n";
-  if (!spec.effects.empty()) {
+  if (!spec.baked_effects.empty()) {
     out << "effects = [";
-    for (size_t i = 0; i < spec.effects.size(); ++i) out << (i ? ", " : "") << Quote(spec.effects[i]);
+    for (size_t i = 0; i < spec.baked_effects.size(); ++i) out << (i ? ", " : "") << Quote(spec.baked_effects[i]);
     out << "]\n";
   }
   out << "\n[ground]\ninputs = [";
   bool first = true;
   for (int i = 0; i < 3; ++i) {
-    if (spec.ground_inputs[i]) {
+    if (d.ground_inputs[i]) {
       out << (first ? "" : ", ") << Quote(std::string(kDofNames[i]));
       first = false;
     }
   }
-  out << "]\n\n[acquisition]\ndelay = " << Fmt(spec.acquisition_delay_s) << "  # s\n";
-  for (const auto& b : spec.bodies) {
+  out << "]\n\n[acquisition]\ndelay = " << Fmt(d.acquisition_delay_s) << "  # s\n";
+  for (const auto& b : d.bodies) {
     out << "\n[[body]]\nname = " << Quote(b.name) << "\nmass = " << Fmt(b.mass_kg) << "  # kg\ncom = " << Vec(b.com_W)
         << "  # m\n";
     const Eigen::Matrix3d& I = b.inertia_com_W;
@@ -481,7 +550,7 @@ std::string WriteModelToml(const ModelSpec& spec) {
     out << "]  # kg m^2\n";
     if (!b.note.empty()) out << "note = " << Quote(b.note) << "\n";
   }
-  for (const auto& j : spec.joints) {
+  for (const auto& j : d.joints) {
     out << "\n[[joint]]\nname = " << Quote(j.name) << "\nparent = " << Quote(j.parent) << "\nchild = " << Quote(j.child)
         << "\norigin = " << Vec(j.origin_W) << "  # m\n";
     WriteOrientation(out, j.R_WJ);
@@ -508,20 +577,27 @@ std::string WriteModelToml(const ModelSpec& spec) {
           << "]\nstiffness = " << Fmt(c.stiffness) << "\ndamping = " << Fmt(c.damping) << "\n";
     }
   }
-  for (const auto& f : spec.frames) {
+  for (const auto& f : d.frames) {
     out << "\n[[frame]]\nname = " << Quote(f.name) << "\nbody = " << Quote(f.body) << "\norigin = " << Vec(f.origin_W) << "  # m\n";
     WriteOrientation(out, f.R_WF);
   }
-  for (const auto* list : {&spec.sensors, &spec.excitations}) {
-    const char* kind = list == &spec.sensors ? "sensor" : "excitation";
+  for (const auto* list : {&d.sensors, &d.excitations}) {
+    const char* kind = list == &d.sensors ? "sensor" : "excitation";
     for (const auto& p : *list) {
       out << "\n[[" << kind << "]]\nname = " << Quote(p.name) << "\nbody = " << Quote(p.body) << "\nposition = "
           << Vec(p.position_W) << "  # m\ndirection = " << Vec(p.direction_W) << "\n";
     }
   }
-  for (const auto& g : spec.geometry_corrections) {
+  for (const auto& g : d.geometry_corrections) {
     out << "\n[[geometry_correction]]\nchannel = " << Quote(g.channel) << "\nkind = " << (g.is_impact ? "\"impact\"" : "\"sensor\"")
         << "\noffset = " << Vec(g.offset_W) << "  # m\nrotation = " << Vec(g.rotation_rad) << "  # rad, Euler XYZ\n";
+  }
+  for (const Effect& e : spec.effects) {
+    out << "\n[[effect]]\nname = " << Quote(e.name) << "\nlocation = " << Quote(e.location) << "\n";
+    for (const auto& p : FindEffectDefinition(e.name).parameters) {
+      auto it = e.parameters.find(p.name);
+      if (it != e.parameters.end()) out << p.name << " = " << Fmt(it->second) << "  # " << p.doc << "\n";
+    }
   }
   for (const auto& h : spec.history) {
     out << "\n[[history]]\nstep = " << Quote(h.step) << "\nerror = " << Fmt(h.error) << "\n";

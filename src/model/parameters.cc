@@ -2,7 +2,10 @@
 
 #include <fnmatch.h>
 
+#include <algorithm>
+
 #include "stagefit/common/error.h"
+#include "stagefit/model/effects.h"
 
 namespace stagefit::model {
 namespace {
@@ -22,7 +25,8 @@ Dimension DampingDim(Dof a, Dof b) {
 
 }  // namespace
 
-std::vector<ParameterInfo> ListParameters(const ModelSpec& spec) {
+std::vector<ParameterInfo> ListParameters(const ModelSpec& model) {
+  const ModelSpec& spec = BaseOf(model);
   std::vector<ParameterInfo> list;
   for (size_t j = 0; j < spec.joints.size(); ++j) {
     const JointSpec& joint = spec.joints[j];
@@ -71,6 +75,21 @@ std::vector<ParameterInfo> ListParameters(const ModelSpec& spec) {
     p.dimension = dim::kMass;
     list.push_back(p);
   }
+  for (size_t e = 0; e < model.effects.size(); ++e) {
+    const Effect& effect = model.effects[e];
+    const EffectDefinition& def = FindEffectDefinition(effect.name);
+    for (const auto& ps : def.parameters) {
+      if (!effect.parameters.count(ps.name)) continue;
+      ParameterInfo p;
+      p.name = effect.name + "@" + effect.location + "." + ps.name;
+      p.kind = ParameterKind::kEffect;
+      p.effect = static_cast<int>(e);
+      p.effect_parameter = ps.name;
+      p.dimension = ps.dimension;
+      p.positive = ps.positive;
+      list.push_back(p);
+    }
+  }
   return list;
 }
 
@@ -88,7 +107,8 @@ std::vector<ParameterInfo> MatchParameters(const ModelSpec& spec, const std::vec
     if (!any) {
       throw InputError("--params: pattern '" + pattern +
                        "' matches no parameter of the model; names are <joint>.k.<Dof>, <joint>.c.<Dof>, "
-                       "<joint>.eta.<Dof>, <joint>.k.<A>-<B> for free DoF, e.g. 'hexapod.k.Rx' or '*.k.*'");
+                       "<joint>.eta.<Dof>, <joint>.k.<A>-<B> for free DoF, <body>.m, <effect>@<location>.<parameter> "
+                       "for the model's effects, e.g. 'hexapod.k.Rx', '*.k.*' or '*@*'");
     }
   }
   std::vector<ParameterInfo> result;
@@ -98,14 +118,35 @@ std::vector<ParameterInfo> MatchParameters(const ModelSpec& spec, const std::vec
   return result;
 }
 
+std::vector<std::string> EffectParameterPatterns(const ModelSpec& spec) {
+  std::vector<std::string> patterns;
+  for (const Effect& e : spec.effects) {
+    if (FindEffectDefinition(e.name).set_by_experiment) continue;
+    // fnmatch: a location's own brackets or stars would be patterns; catalogue locations have none.
+    const std::string pattern = e.name + "@" + e.location + ".*";
+    if (std::find(patterns.begin(), patterns.end(), pattern) == patterns.end()) patterns.push_back(pattern);
+  }
+  return patterns;
+}
+
+std::vector<std::string> WithEffectParameters(std::vector<std::string> patterns, const ModelSpec& spec) {
+  for (const auto& p : EffectParameterPatterns(spec)) {
+    if (std::find(patterns.begin(), patterns.end(), p) == patterns.end()) patterns.push_back(p);
+  }
+  return patterns;
+}
+
 ParameterInfo FindParameter(const ModelSpec& spec, const std::string& name) {
   for (const auto& p : ListParameters(spec)) {
     if (p.name == name) return p;
   }
-  throw InputError("parameter '" + name + "' is not a parameter of the model (names: <joint>.k.<Dof>, ...)");
+  throw InputError("parameter '" + name + "' is not a parameter of the model (names: <joint>.k.<Dof>, <body>.m, "
+                   "<effect>@<location>.<parameter>, ...)");
 }
 
-double GetParameter(const ModelSpec& spec, const ParameterInfo& p) {
+namespace {
+
+double GetDirect(const ModelSpec& spec, const ParameterInfo& p) {
   if (p.kind == ParameterKind::kMass) return spec.bodies.at(p.body).mass_kg;
   const JointSpec& j = spec.joints.at(p.joint);
   switch (p.kind) {
@@ -114,12 +155,13 @@ double GetParameter(const ModelSpec& spec, const ParameterInfo& p) {
     case ParameterKind::kLossFactor: return j.loss_factor[index(p.a)];
     case ParameterKind::kCouplingStiffness: return j.couplings.at(p.coupling).stiffness;
     case ParameterKind::kCouplingDamping: return j.couplings.at(p.coupling).damping;
-    case ParameterKind::kMass: break;
+    case ParameterKind::kMass:
+    case ParameterKind::kEffect: break;
   }
   return 0.0;
 }
 
-void SetParameter(ModelSpec& spec, const ParameterInfo& p, double value) {
+void SetDirect(ModelSpec& spec, const ParameterInfo& p, double value) {
   if (p.kind == ParameterKind::kMass) {
     spec.bodies.at(p.body).mass_kg = value;
     return;
@@ -131,8 +173,83 @@ void SetParameter(ModelSpec& spec, const ParameterInfo& p, double value) {
     case ParameterKind::kLossFactor: j.loss_factor[index(p.a)] = value; break;
     case ParameterKind::kCouplingStiffness: j.couplings.at(p.coupling).stiffness = value; break;
     case ParameterKind::kCouplingDamping: j.couplings.at(p.coupling).damping = value; break;
-    case ParameterKind::kMass: break;
+    case ParameterKind::kMass:
+    case ParameterKind::kEffect: break;
   }
+}
+
+/// An effect of `spec` at joint `joint` (or at one of its DoF) with the name `effect`.
+bool JointHasEffect(const ModelSpec& spec, int joint, const std::string& effect) {
+  const std::string& name = BaseOf(spec).joints.at(joint).name;
+  for (const Effect& e : spec.effects) {
+    if (e.name == effect && (e.location == name || e.location.rfind(name + ".", 0) == 0)) return true;
+  }
+  return false;
+}
+
+/// The effects leave the parameter's value in the expanded description as in the base (header).
+bool SameInBaseAndExpanded(const ModelSpec& spec, const ParameterInfo& p) {
+  if (spec.effects.empty()) return true;
+  switch (p.kind) {
+    case ParameterKind::kStiffness: return true;
+    case ParameterKind::kDamping:
+    case ParameterKind::kLossFactor:
+    case ParameterKind::kCouplingDamping: return !JointHasEffect(spec, p.joint, "structural-damping");
+    case ParameterKind::kCouplingStiffness: return !JointHasEffect(spec, p.joint, "coupled-stiffness");
+    case ParameterKind::kMass:
+    case ParameterKind::kEffect: return false;
+  }
+  return false;
+}
+
+}  // namespace
+
+double GetParameter(const ModelSpec& spec, const ParameterInfo& p) {
+  if (p.kind == ParameterKind::kEffect) return spec.effects.at(p.effect).parameters.at(p.effect_parameter);
+  return GetDirect(BaseOf(spec), p);
+}
+
+void SetParameter(ModelSpec& spec, const ParameterInfo& p, double value) {
+  if (p.kind == ParameterKind::kEffect) {
+    std::vector<Effect> effects = spec.effects;
+    effects.at(p.effect).parameters[p.effect_parameter] = value;
+    SetEffects(spec, std::move(effects));
+    return;
+  }
+  if (!spec.base) {
+    SetDirect(spec, p, value);
+    return;
+  }
+  // The base is shared between copies of the spec: copied before it changes unless this spec holds
+  // the only reference.
+  if (spec.base.use_count() > 1) spec.base = std::make_shared<ModelSpec>(*spec.base);
+  const double previous = GetDirect(*spec.base, p);
+  SetDirect(*spec.base, p, value);
+  if (SameInBaseAndExpanded(spec, p)) {
+    SetDirect(spec, p, value);
+    return;
+  }
+  try {
+    SetEffects(spec, spec.effects);
+  } catch (const InputError&) {
+    SetDirect(*spec.base, p, previous);
+    throw;
+  }
+}
+
+bool HasAnalyticDerivative(const ModelSpec& spec, const ParameterInfo& p) {
+  if (p.kind == ParameterKind::kEffect) return false;
+  if (spec.effects.empty()) return true;
+  switch (p.kind) {
+    case ParameterKind::kStiffness:
+    case ParameterKind::kCouplingStiffness: return true;
+    case ParameterKind::kDamping:
+    case ParameterKind::kLossFactor:
+    case ParameterKind::kCouplingDamping: return !JointHasEffect(spec, p.joint, "structural-damping");
+    case ParameterKind::kMass:
+    case ParameterKind::kEffect: return false;
+  }
+  return false;
 }
 
 SystemDerivative CalcSystemDerivative(const AssembledModel& model, const ParameterInfo& p) {
@@ -142,6 +259,7 @@ SystemDerivative CalcSystemDerivative(const AssembledModel& model, const Paramet
   d.dC = Eigen::MatrixXd::Zero(n, n);
   d.dK = Eigen::MatrixXd::Zero(n, n);
   d.dK_loss = Eigen::MatrixXd::Zero(n, n);
+  STAGEFIT_ASSERT(p.kind != ParameterKind::kEffect, "an effect parameter has no analytic system derivative");
   if (p.kind == ParameterKind::kMass) {
     const auto translation = model.body_map(p.body).topRows<3>();
     d.dM = translation.transpose() * translation;
@@ -182,6 +300,7 @@ SystemDerivative CalcSystemDerivative(const AssembledModel& model, const Paramet
       d.dC = E;
       break;
     case ParameterKind::kMass:
+    case ParameterKind::kEffect:
       break;
   }
   return d;

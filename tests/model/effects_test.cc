@@ -40,7 +40,7 @@ TEST(Effects, PayloadConservesMassAndFirstMoment) {
   // Parallel axis: Ixx about the new CoM = Ixx + m1 d1^2 + m2 d2^2.
   const double d1 = after.com_W.z() - before.com_W.z(), d2 = 0.1 - d1;
   EXPECT_NEAR(after.inertia_com_W(0, 0), before.inertia_com_W(0, 0) + before.mass_kg * d1 * d1 + 5.0 * d2 * d2, 1e-12);
-  EXPECT_EQ(spec.effects[0], "payload@hexapod:mass=5,x=0,y=0,z=0.10000000000000001");
+  EXPECT_EQ(spec.effects[0].ToString(), "payload@hexapod:mass=5,x=0,y=0,z=0.10000000000000001");
 }
 
 TEST(Effects, PayloadLowersTheHexapodVerticalModeAsSqrtOfMassRatio) {

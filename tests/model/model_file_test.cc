@@ -152,7 +152,7 @@ TEST(ModelFile, WrittenModelReadsBackIdentical) {
   spec.joints[1].couplings.push_back({Dof::kDx, Dof::kRy, 1.2345678901234567e6, 3.25});
   spec.joints[2].loss_factor[0] = 0.015;
   spec.history.push_back({"fit", 0.0123, "all stiffnesses"});
-  spec.effects.push_back("payload@hexapod");
+  spec.baked_effects.push_back("payload@hexapod");
   ModelSpec back = ParseModelToml(WriteModelToml(spec), "roundtrip.toml");
   EXPECT_EQ(WriteModelToml(back), WriteModelToml(spec));
   ASSERT_EQ(back.joints.size(), spec.joints.size());

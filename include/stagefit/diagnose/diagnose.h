@@ -46,6 +46,10 @@ struct DiagnoseOptions {
   compare::ComparisonOptions comparison;
   /// The model's own parameters fitted in the baseline and with every candidate (--params patterns).
   std::vector<std::string> params = {"*.k.*"};
+  /// The parameters of the effects already in the model are fitted too, in the baseline and with every
+  /// candidate (model::WithEffectParameters): a second effect is then judged with the first one's
+  /// parameters free, as the refit that adds it will hold them.
+  bool refit_effects = true;
   /// Effects to try (catalogue names); empty = the whole catalogue.
   std::vector<std::string> effects;
   int screening_iterations = 4;   ///< iterations of the short fit of every candidate

@@ -21,6 +21,7 @@
 
 #include "stagefit/compare/residuals.h"
 #include "stagefit/fit/least_squares.h"
+#include "stagefit/fit/model_fit.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_spec.h"
 #include "stagefit/model/parameters.h"
@@ -28,8 +29,7 @@
 
 namespace stagefit::diagnose {
 
-/// The range of a sensor-geometry correction's Euler angles, rad (about 34 degrees).
-constexpr double kMaxCorrectionTurn = 0.6;
+using model::kMaxCorrectionTurn;
 
 /// Search ranges of the effect parameters (natural units), from the model around the location; the
 /// parameters named in `held` are left out. `positions` (optional) receives each spec's position in the
@@ -38,12 +38,8 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
                                                      const std::vector<std::string>& held = {},
                                                      std::vector<int>* positions = nullptr);
 
-/// How an effect parameter's Jacobian column is computed (header).
-enum class EffectColumnRoute {
-  kSystemDifference,    ///< difference of M, C, K, K_loss; analytic FRF derivative
-  kMeasuredDifference,  ///< residuals at p +- h with the model's responses at p
-  kResidualDifference,  ///< residuals at p +- h
-};
+/// How an effect parameter's Jacobian column is computed (header; fit::ColumnRoute).
+using EffectColumnRoute = fit::ColumnRoute;
 
 class EffectProblem final : public fit::LeastSquaresProblem {
  public:

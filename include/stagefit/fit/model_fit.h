@@ -18,6 +18,7 @@
 #include "stagefit/fit/least_squares.h"
 #include "stagefit/model/model_spec.h"
 #include "stagefit/model/parameters.h"
+#include "stagefit/response/frf_evaluator.h"
 
 namespace stagefit::fit {
 
@@ -37,8 +38,41 @@ struct BoundRule {
   std::string source;             ///< "file:line" for messages; empty when built in code
 };
 
-/// The least-squares problem "parameters of `spec` -> residuals of `comparison`". Holds a copy of
-/// `spec` as its workspace: not thread-safe (use one per thread).
+/// How a parameter's Jacobian column is computed.
+///  - kAnalytic: CalcSystemDerivative() (model/parameters.h: HasAnalyticDerivative);
+///  - kSystemDifference: the parameter changes only the model's M, C, K and K_loss (an effect's mass,
+///    position or stiffness; a body's mass under a payload): the central difference of those matrices
+///    is a derivative of the dynamic stiffness, whose FRF derivative is analytic and comes out of the
+///    same modal evaluation as the others' (no eigen-decomposition of its own);
+///  - kMeasuredDifference: it changes only the measured side (a channel's geometry in compliance
+///    space: the data are re-projected, the model is not touched): the residuals at p +- h with the
+///    model's responses at p;
+///  - kResidualDifference: anything else (a joint's origin moves the generalised coordinates the
+///    channels are read in; a delay; a channel's geometry in raw space): the central difference of the
+///    residuals.
+enum class ColumnRoute { kAnalytic, kSystemDifference, kMeasuredDifference, kResidualDifference };
+
+/// Same generalised coordinates, channels and delay: the systems differ at most in M, C, K, K_loss.
+bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b);
+bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b);
+/// (plus - minus) / (2 h) of the dynamic stiffness, as a derivative named `name`.
+response::DynamicStiffnessDerivative SystemDifference(const model::SecondOrderSystem& plus,
+                                                      const model::SecondOrderSystem& minus, double h,
+                                                      const std::string& name);
+/// The route of a differenced column from the specs at p (`at`, its system `at_system`) and p +- h;
+/// fills the systems at p +- h.
+ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model::ModelSpec& at,
+                              const model::SecondOrderSystem& at_system, const model::ModelSpec& plus,
+                              const model::ModelSpec& minus, model::SecondOrderSystem* plus_system,
+                              model::SecondOrderSystem* minus_system);
+
+/// The step of a differenced column at `value`: 1e-5 |value| for a log-scale parameter, a millionth of
+/// the catalogue range of an effect parameter without a log scale.
+double DifferenceStep(const model::ModelSpec& spec, const model::ParameterInfo& parameter, double value);
+
+/// The least-squares problem "parameters of `spec` -> residuals of `comparison`". The parameters may
+/// include a body's mass and the effects' parameters (model/parameters.h); their columns come by the
+/// routes of ColumnRoute. Holds a copy of `spec` as its workspace: not thread-safe (use one per thread).
 class ModelFitProblem final : public LeastSquaresProblem {
  public:
   /// `parameters` from model::MatchParameters(spec, ...) (or ListParameters). `comparison` must outlive
@@ -56,12 +90,21 @@ class ModelFitProblem final : public LeastSquaresProblem {
   std::unique_ptr<LeastSquaresProblem> Clone() const override;
 
   const std::vector<model::ParameterInfo>& parameters() const { return parameters_; }
+  /// The route of each differenced parameter's column at the last Evaluate() with a Jacobian, in the
+  /// order of the parameters without an analytic derivative.
+  const std::vector<ColumnRoute>& routes() const { return routes_; }
 
  private:
   mutable model::ModelSpec spec_;
   mutable response::FrfWithDerivatives workspace_;  // reused by every evaluation
+  mutable response::FrfWithDerivatives difference_workspace_;
   const compare::Comparison* comparison_;
   std::vector<model::ParameterInfo> parameters_;
+  std::vector<int> analytic_, differenced_;   // indices into parameters_
+  std::vector<model::ParameterInfo> analytic_params_;
+  mutable std::vector<ColumnRoute> routes_;
+  mutable Eigen::MatrixXd columns_;
+  mutable Eigen::VectorXd r_plus_, r_minus_;
 };
 
 /// The ParameterSpec of each parameter: name, SI unit, initial value from `spec`, log scale for

@@ -2,8 +2,10 @@
 // The effects catalogue (SPEC §5): named, parameterised edits of a model description, applied at a
 // location. An effect is nothing but an edit of the ModelSpec (a body's mass properties, a new body and
 // joint, an imposed DoF made compliant, a moved joint origin, a coupling term, loss factors, a channel
-// geometry correction, a delay, a spin rate), so everything it does can also be written by hand in a
-// model file, and a model with effects applied round-trips through its file.
+// geometry correction, a delay, a spin rate). An applied effect stays a part of the model with its
+// parameters (ModelSpec::effects over ModelSpec::base): its parameters are fit parameters
+// ("payload@hexapod.mass", model/parameters.h) and a model file keeps it as an [[effect]] table that is
+// applied again on load, so a tuned model with effects round-trips through its file bit for bit.
 //
 // Text form (--with): EFFECT@LOCATION[:name=value,name=value...], values SI or with units:
 //   payload@hexapod:mass=5 kg,z=100 mm      extra-body@rz:mass=20,k=5e7
@@ -11,6 +13,8 @@
 //   joint-offset@ty:dz=50 mm                 structural-damping@hexapod:eta=0.05
 //   sensor-geometry@a2x:dx=2 mm              delay@acquisition:tau=0.2 ms     gyroscopic@rz:spin=60 rpm
 
+#include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -27,20 +31,43 @@ struct EffectParameterSpec {
   std::string doc;
 };
 
+/// The range a fit or a search gives an effect parameter (natural SI units), around its value.
+struct EffectParameterRange {
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  bool log_scale = false;
+  double scale = 1.0;   ///< the optimiser works on value / scale (fit::ParameterSpec::scale)
+};
+
+/// The range of a sensor-geometry correction's Euler angles, rad (about 34 degrees).
+inline constexpr double kMaxCorrectionTurn = 0.6;
+
+struct Effect;
+
+/// One entry of the catalogue: what the effect is, where it applies, its parameters, and everything
+/// that depends on which effect it is (defaults, the edit, search ranges, the words for a user). The
+/// rest of the program asks the entry; it does not branch on effect names.
 struct EffectDefinition {
   std::string name;
   std::string summary;        ///< one line: the edit it makes
   std::string location_kind;  ///< "body", "joint", "joint.DoF (imposed)", "joint.A-B", "channel", "acquisition"
   std::vector<EffectParameterSpec> parameters;
-};
-
-/// A catalogued effect with its location and parameter values (SI).
-struct Effect {
-  std::string name;
-  std::string location;
-  std::map<std::string, double> parameters;
-  /// "name@location:p1=v1,p2=v2" with 17 significant digits, parameters in catalogue order.
-  std::string ToString() const;
+  /// Starting values at a location, derived from the model (e.g. a payload of 10 % of the body's mass).
+  std::function<std::map<std::string, double>(const ModelSpec&, const std::string& location)> defaults;
+  /// The edit of the description; `get` returns a parameter's value (finite) or throws InputError.
+  std::function<void(ModelSpec&, const Effect&, const std::function<double(const std::string&)>& get)> apply;
+  /// The range of parameter `k` around the effect's value, on the model the effect is applied to.
+  std::function<EffectParameterRange(const ModelSpec&, const Effect&, const EffectParameterSpec&)> range;
+  /// One sentence for a user: what the fitted effect means physically.
+  std::function<std::string(const Effect&)> explain;
+  /// The effect adds mass to the stack (a payload, an extra body): its "mass" parameter is checked
+  /// against the stack's mass before a diagnosis claims it.
+  bool adds_mass = false;
+  /// Only the measured side changes in compliance space (a channel's geometry): the comparison then
+  /// re-projects the data without touching the model (the Jacobian route of fit/column_routes.h).
+  bool measured_side_only = false;
+  /// Set by the experiment rather than fitted from a hammer test (a spin rate).
+  bool set_by_experiment = false;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
@@ -58,13 +85,33 @@ std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::strin
 std::map<std::string, double> DefaultEffectParameters(const ModelSpec& spec, const std::string& name,
                                                       const std::string& location);
 
+/// The search and fit range of parameter `parameter` of `effect` around its value, on `before` (the
+/// model the effect is applied to).
+EffectParameterRange EffectRange(const ModelSpec& before, const Effect& effect, const std::string& parameter);
+
+/// The catalogue entry's sentence for a fitted effect.
+std::string ExplainEffect(const Effect& effect);
+
 /// Parses the text form; missing parameters take their defaults. Throws InputError naming the text,
 /// the part that is wrong and what was expected (unknown effect, location or parameter; bad value).
 Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::vector<std::string>& channels = {});
 
-/// Applies the edit to `spec` and records effect.ToString() in spec.effects. Throws InputError when the
-/// location does not exist or the parameters are out of range (e.g. negative mass).
+/// Applies the edit to `spec` and appends `effect` to spec.effects; the first effect keeps the
+/// description before it in spec.base (model_spec.h). Throws InputError when the location does not
+/// exist or the parameters are out of range (e.g. negative mass).
 void ApplyEffect(ModelSpec& spec, const Effect& effect);
+
+/// `base` (without effects) with `effects` applied in order: the same as ApplyEffect one by one.
+ModelSpec ExpandEffects(const ModelSpec& base, const std::vector<Effect>& effects);
+
+/// Replaces spec's effects by `effects` (same base; the history is kept) and re-expands the description.
+void SetEffects(ModelSpec& spec, std::vector<Effect> effects);
+
+/// The description before the effects (spec itself when it has none).
+const ModelSpec& BaseOf(const ModelSpec& spec);
+
+/// The base with the first `count` effects of spec applied (the model effect `count` is applied to).
+ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count);
 
 /// Every catalogued effect at every location with default parameters (what diagnose tries).
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels = {});

@@ -7,6 +7,8 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -88,6 +90,32 @@ struct HistoryEntry {
   std::string detail;
 };
 
+/// A catalogued effect (model/effects.h) at a location, with its parameter values (SI).
+struct Effect {
+  std::string name;
+  std::string location;
+  std::map<std::string, double> parameters;
+  /// "name@location:p1=v1,p2=v2" with 17 significant digits, parameters in catalogue order.
+  std::string ToString() const;
+  bool operator==(const Effect& other) const {
+    return name == other.name && location == other.location && parameters == other.parameters;
+  }
+};
+
+struct ModelSpec;
+
+/// The description before its effects, shared between copies of a spec (copy on write).
+using BaseSpecPtr = std::shared_ptr<ModelSpec>;
+
+/// A model description: its base (bodies, joints, channels) and an ordered list of effects.
+///
+/// The fields below hold the assembled description, the base with every effect of `effects` applied
+/// in order (model::ApplyEffect), which is what the rest of the program reads. When `effects` is not
+/// empty, `base` holds the description before them: the effects' parameters stay parameters
+/// (model/parameters.h: "payload@hexapod.mass"), and changing one re-expands the description from the
+/// base (model::ExpandEffects), deterministically. A model's own parameters (joint stiffnesses, body
+/// masses) are those of the base; model::SetParameter keeps base and assembled description in step.
+/// A model file holds the base and the effects as [[effect]] tables (docs/model-file.md).
 struct ModelSpec {
   std::string name;
   std::string description;
@@ -99,7 +127,11 @@ struct ModelSpec {
   std::array<bool, 3> ground_inputs{true, true, true};  ///< which ground translations are inputs
   std::string compliance_frame = "X";
   double acquisition_delay_s = 0.0;                     ///< pure delay on every output
-  std::vector<std::string> effects;                     ///< catalogued effects applied, in order
+  std::vector<Effect> effects;                          ///< catalogued effects applied, in order
+  BaseSpecPtr base;                                     ///< the description before `effects`; null if none
+  /// Effects of files written before effects were kept as parameters ([model] effects): text only,
+  /// already part of the bodies and joints.
+  std::vector<std::string> baked_effects;
   std::vector<GeometryCorrection> geometry_corrections;
   std::vector<HistoryEntry> history;
 };
