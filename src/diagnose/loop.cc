@@ -73,6 +73,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     d.progress = options.progress;
     const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
     summary.last_verdict = diagnosis.verdict;
+    summary.last_diagnosis = diagnosis;
     if (!diagnosis.effect_found) {
       summary.stop_reason = "no effect of the catalogue helps";
       break;

@@ -389,9 +389,7 @@ if (e.name == "payload") {
   return e;
 }
 
-/// How much `with` differs from `without` against the measurement noise (AddNoise's model with
-/// relative = absolute = `noise`): the RMS over every element and frequency of |H_with - H_without| / sigma.
-double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, double noise) {
+std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const FrfData& with, const FrfData& without, double noise) {
   const int nf = without.num_frequencies(), no = without.num_outputs(), ni = without.num_inputs();
   Eigen::MatrixXd rms = Eigen::MatrixXd::Zero(no, ni);
   for (int f = 0; f < nf; ++f) rms += without.frf[f].cwiseAbs2();
@@ -399,16 +397,22 @@ double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, do
   // An element the symmetric model makes exactly zero gets no noise from AddNoise; a real test would
   // still show its channel's noise floor: 1e-3 of the strongest element's RMS.
   const double floor2 = 1e-6 * rms.maxCoeff() * rms.maxCoeff();
-  double sum = 0.0;
+  std::vector<Eigen::MatrixXd> change(nf, Eigen::MatrixXd::Zero(no, ni));
   for (int f = 0; f < nf; ++f) {
     for (int o = 0; o < no; ++o) {
       for (int i = 0; i < ni; ++i) {
         const double sigma2 = noise * noise * (std::norm(without.frf[f](o, i)) + rms(o, i) * rms(o, i) + floor2);
-        sum += std::norm(with.frf[f](o, i) - without.frf[f](o, i)) / sigma2;
+        change[f](o, i) = std::norm(with.frf[f](o, i) - without.frf[f](o, i)) / sigma2;
       }
     }
   }
-  return std::sqrt(sum / (static_cast<double>(nf) * no * ni));
+  return change;
+}
+
+double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, double noise) {
+  double sum = 0.0;
+  for (const auto& c : NoiseNormalisedChange(with, without, noise)) sum += c.sum();
+  return std::sqrt(sum / (static_cast<double>(without.num_frequencies()) * without.num_outputs() * without.num_inputs()));
 }
 
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options) {

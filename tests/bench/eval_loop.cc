@@ -6,8 +6,17 @@
 // of the coherence, the distance of the final model to the noise-free truth on the same points and
 // weights (||r_final - r_truth||, the error scalar of ln(H_final / H_truth)), and the time.
 //
-// Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--first-seed S] [--verbose 1]
-//   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them.
+// Out-of-catalogue cases (--outside O, synthetic::MakeOutsideCatalogueCase: a flexible mode of the top
+// plate, bending or in-plane, or a cable between the granite and the hexapod, kinds in turn): whether
+// the loop adds nothing, and whether its last diagnosis localises what is missing: one of the two
+// worst bands it names holds the frequency where the hidden part changes the data most, and one of
+// the three worst elements it names (or its least rigid channel) is on a channel the hidden part
+// changes most.
+//
+// Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
+//                  [--first-seed S] [--verbose 1]
+//   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them, then
+//   three-effect cases, then out-of-catalogue cases.
 
 #include <algorithm>
 #include <cstdio>
@@ -22,6 +31,7 @@
 #include "stagefit/compare/residuals.h"
 #include "stagefit/diagnose/loop.h"
 #include "stagefit/model/model_file.h"
+#include "stagefit/synthetic/outside_catalogue.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 namespace {
@@ -36,7 +46,7 @@ struct Outcome {
   double time_s = 0;
 };
 
-Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, bool verbose) {
+synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
   std::mt19937_64 rng(seed ^ 0x5eedULL);
   synthetic::HiddenEffectOptions options;
   options.num_effects = num_effects;
@@ -45,6 +55,11 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
   options.num_frequencies = std::uniform_int_distribution<int>(300, 1200)(rng);
   options.noise_min = 0.01;
   options.noise_max = 0.03;
+  return options;
+}
+
+Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, bool verbose) {
+  const synthetic::HiddenEffectOptions options = DrawOptions(seed, num_effects);
   const auto hidden = synthetic::MakeHiddenEffectCase(nominal, seed, options);
   diagnose::LoopOptions loop_options;
   if (verbose) loop_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
@@ -84,15 +99,66 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
   return o;
 }
 
+struct OutsideOutcome {
+  bool claimed = false;
+  bool band = false;     // a worst band named holds the peak of the change
+  bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
+  double time_s = 0;
+};
+
+OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, const std::string& kind, bool verbose) {
+  const synthetic::HiddenEffectOptions options = DrawOptions(seed, 0);
+  const auto hidden = synthetic::MakeOutsideCatalogueCase(nominal, seed, kind, options);
+  diagnose::LoopOptions loop_options;
+  if (verbose) loop_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
+  const diagnose::LoopSummary summary = diagnose::RunLoop(nominal, hidden.measurement, loop_options);
+  const diagnose::DiagnoseSummary& last = summary.last_diagnosis;
+  OutsideOutcome o;
+  o.claimed = !summary.effects_added.empty();
+  for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
+    o.band = o.band || (hidden.peak_hz >= last.worst_bands[k].band.low_hz && hidden.peak_hz <= last.worst_bands[k].band.high_hz);
+  }
+  auto changed = [&](const std::string& name) {
+    return std::count(hidden.outputs.begin(), hidden.outputs.end(), name) + std::count(hidden.inputs.begin(), hidden.inputs.end(), name) > 0;
+  };
+  std::string where;
+  for (size_t k = 0; k < last.worst_elements.size() && k < 3; ++k) {
+    const std::string& name = last.worst_elements[k].name;  // "<output>/<input>"
+    const size_t slash = name.find('/');
+    o.channel = o.channel || changed(name.substr(0, slash)) || changed(name.substr(slash + 1));
+    where += (where.empty() ? "" : " ") + name;
+  }
+  if (!last.inconsistent_channels.empty()) o.channel = o.channel || changed(last.inconsistent_channels[0].channel);
+  for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
+    char band[64];
+    std::snprintf(band, sizeof band, " %.0f-%.0f Hz", last.worst_bands[k].band.low_hz, last.worst_bands[k].band.high_hz);
+    where += band;
+  }
+  std::string added;
+  for (const auto& w : summary.effects_added) added += (added.empty() ? "" : " + ") + w.substr(0, w.find(':'));
+  o.time_s = summary.time_s;
+  const double floor = summary.noise_floor.floor;
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s %.1f s\n",
+              static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
+              hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), added.empty() ? "(nothing added)" : added.c_str(),
+              summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : "", o.band ? "band " : "",
+              o.channel ? "channel " : "", summary.time_s);
+  if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
+  std::fflush(stdout);
+  return o;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   KeepFreedMemory();  // as the stagefit program does
-  int cases = 10, two_effects = 0, effect_free = 0, verbose = 0;
+  int cases = 10, two_effects = 0, three_effects = 0, effect_free = 0, outside = 0, verbose = 0;
   uint64_t first_seed = 5000;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--cases")) cases = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--two-effects")) two_effects = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--outside")) outside = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--three-effects")) three_effects = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--verbose")) verbose = std::atoi(argv[i + 1]);
@@ -115,10 +181,21 @@ int main(int argc, char** argv) {
       t->max_time = std::max(t->max_time, o.time_s);
     }
   };
-  Tally one, two, none;
+  Tally one, two, three, none;
   run(cases, 1, first_seed, &one);
   run(two_effects, 2, first_seed + cases, &two);
   run(effect_free, 0, first_seed + cases + two_effects, &none);
+  run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
+  int outside_clean = 0, outside_band = 0, outside_channel = 0;
+  double outside_time = 0;
+  const char* kinds[] = {"plate-bending", "plate-breathing", "cable"};
+  for (int c = 0; c < outside; ++c) {
+    const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c, kinds[c % 3], verbose);
+    outside_clean += !o.claimed;
+    outside_band += o.band;
+    outside_channel += o.channel;
+    outside_time += o.time_s;
+  }
   auto pct = [](int a, int n) { return n > 0 ? 100.0 * a / n : 0.0; };
   if (one.n) {
     std::printf("\nsingle effect (%d): named %d (%.0f %%), nothing else added %d, final within 1.2x the floor %d (%.0f %%), "
@@ -132,9 +209,19 @@ int main(int argc, char** argv) {
                 two.n, two.named, pct(two.named, two.n), two.done, pct(two.done, two.n), two.truth, two.time / two.n,
                 two.max_time);
   }
+  if (three.n) {
+    std::printf("three effects (%d): all named %d (%.0f %%), all named and at the floor with nothing else %d (%.0f %%), "
+                "within 0.01 of the truth %d; mean %.1f s, max %.1f s\n",
+                three.n, three.named, pct(three.named, three.n), three.done, pct(three.done, three.n), three.truth,
+                three.time / three.n, three.max_time);
+  }
   if (none.n) {
     std::printf("effect-free (%d): nothing added %d (%.0f %%), final within 1.2x the floor %d; mean %.1f s\n", none.n,
                 none.clean, pct(none.clean, none.n), none.floor, none.time / none.n);
+  }
+  if (outside) {
+    std::printf("outside the catalogue (%d): nothing added %d (%.0f %%), worst band named %d, worst channel named %d; mean %.1f s\n",
+                outside, outside_clean, pct(outside_clean, outside), outside_band, outside_channel, outside_time / outside);
   }
   return 0;
 }

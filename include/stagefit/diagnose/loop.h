@@ -9,8 +9,8 @@
 // candidate's error before its own refit. The refit then runs from two starts and keeps the better:
 // that state with the model's parameters (`params`) freed, and the model as given with every effect
 // added so far, all their parameters fitted again together with the model's (diagnose::FitEffects()).
-// Inside a round's diagnosis the effects already added are held (each candidate is fitted with the
-// model's parameters only).
+// Inside a round's diagnosis the effects already added are refitted with each candidate
+// (DiagnoseOptions::refit_effects).
 
 #include <functional>
 #include <limits>
@@ -50,6 +50,9 @@ struct LoopSummary {
   /// Why it stopped: "at the noise floor", "no effect of the catalogue helps", "the round limit", ...
   std::string stop_reason;
   std::string last_verdict;            ///< the last diagnosis' verdict
+  /// The last diagnosis whole (its "where": worst bands, elements, inconsistent channels); empty
+  /// (no candidates, no bands) when the first fit already ended at the noise floor.
+  DiagnoseSummary last_diagnosis;
   double time_s = 0;
 
   /// The error history as a table (step, action, error, x floor) with the stop reason.

@@ -85,7 +85,7 @@ struct HiddenEffectCase {
   std::vector<std::string> scattered_parameters;  ///< "<joint>.k.<Dof>" that were scattered
 };
 struct HiddenEffectOptions {
-  int num_effects = 1;              ///< 0, 1 or 2
+  int num_effects = 1;              ///< 0 to 8, each of a different kind
   TestLayout layout = TestLayout::kTopPlate;
   double stiffness_scatter = 0.15;  ///< log-normal sigma of the stiffness factors (clipped to [1/1.6, 1.6])
   double noise_min = 0.01, noise_max = 0.03;
@@ -97,6 +97,15 @@ struct HiddenEffectOptions {
   int max_draws = 20;
 };
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
+
+/// How much `with` differs from `without` against the measurement noise of AddNoise with relative =
+/// absolute = `noise`: per frequency, |H_with - H_without|^2 / sigma^2 of every element (an element
+/// the model makes exactly zero gets sigma from 1e-3 of the strongest element's RMS, as a real test's
+/// channel noise would). NoiseNormalisedDifference is the RMS of its square root over every point:
+/// the "visibility" of HiddenEffect.
+std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const measurement::FrfData& with, const measurement::FrfData& without,
+                                                   double noise);
+double NoiseNormalisedDifference(const measurement::FrfData& with, const measurement::FrfData& without, double noise);
 
 /// Raw hammer-test time data of `truth`: for every impact, `hits_per_impact` half-sine force pulses
 /// (duration `pulse_s`, peak `peak_force_n`, start jittered), and the accelerometer records computed in
