@@ -71,6 +71,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     say("round " + std::to_string(round + 1) + ": diagnose");
     DiagnoseOptions d = options.diagnose;
     d.progress = options.progress;
+    // The diagnosis' second starts from the model the user gave, not from the fitted one it receives.
+    if (d.as_given.empty()) {
+      for (const auto& p : model::ListParameters(spec)) d.as_given[p.name] = model::GetParameter(spec, p);
+    }
     const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
     summary.last_verdict = diagnosis.verdict;
     summary.last_diagnosis = diagnosis;

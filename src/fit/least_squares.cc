@@ -761,6 +761,9 @@ Eigen::VectorXd BestProbe(const LeastSquaresProblem& problem, std::vector<std::u
 
 }  // namespace
 
+/// A log-scale parameter within this (natural-log) distance of a bound is taken as run to it.
+constexpr double kAtBound = 0.01;
+
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                            const FitOptions& options, const std::vector<SeriesPair>& series) {
   const auto t0 = Clock::now();
@@ -826,6 +829,28 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
       }
       evaluations += static_cast<int>(probes.size());
       best = BestProbe(problem, clones, probes, threshold);
+    }
+    if (best.size() == 0 && options.bound_reset_iterations > 0) {
+      // Parameters at a bound: set back to their initial value, the others refitted shortly.
+      FitOptions reset_options = restart_options;
+      reset_options.max_iterations = options.bound_reset_iterations;
+      reset_options.analyse_optimum = false;
+      double best_cost = threshold;
+      for (size_t i = 0; i < start.size(); ++i) {
+        const ParameterSpec& s = start[i];
+        if (!s.log_scale || !(std::abs(std::log(p[i] / s.upper)) < kAtBound || std::abs(std::log(p[i] / s.lower)) < kAtBound)) {
+          continue;
+        }
+        std::vector<ParameterSpec> from = start;
+        for (size_t j = 0; j < from.size(); ++j) from[j].initial = std::clamp(p[j], from[j].lower, from[j].upper);
+        from[i].initial = parameters[i].initial;
+        const FitSummary reset = Solve(problem, from, reset_options);
+        evaluations += reset.num_evaluations;
+        if (reset.status != FitStatus::kFailed && reset.final_cost < best_cost) {
+          best_cost = reset.final_cost;
+          best = reset.values();
+        }
+      }
     }
     if (best.size() == 0) break;
     // exp(ln p) of a parameter at its bound can land one rounding step outside it: clip every value.

@@ -65,6 +65,17 @@ struct DiagnoseOptions {
   /// fit reached it too, but changed the baselines that two extra bodies on the hexapod (seeds 1006,
   /// 2019) were found from, and both were lost (docs/diagnose.md).
   int refit_starts = 3;
+  /// "The model as given" for the second starts (model parameter name -> value, SI): the starts from
+  /// which the candidates that the baseline's bent parameters would trap are fitted again, and the
+  /// refit without the leader's effect. Empty: the parameters of the model passed to Diagnose(). The
+  /// loop passes those of the model the user gave it: the model it diagnoses has been fitted already.
+  std::map<std::string, double> as_given;
+  /// When the baseline stays more than this many times above the noise floor, every candidate is also
+  /// screened from the model as given (not only those that add mass or move a joint): a baseline that
+  /// has bent its stiffnesses far to mimic an effect holds the effect's own fit in its basin (a
+  /// coupling in the hexapod: 1.33x the floor from the model as given, 26x from a baseline at 35x).
+  /// 0 or an unknown floor: only the effects named in docs/diagnose.md get that start.
+  double far_times_floor = 3.0;
   /// The leaders after the second starts are fitted on until converged (at most this many iterations,
   /// no probes): the rounds before stop at a budget, and the error a leader is reported with should be
   /// its optimum's.

@@ -171,6 +171,13 @@ struct FitOptions {
   /// the series probes of pairs of springs in series.
   bool probe_initial_values = true;
   bool probe_series = true;
+  /// When no probe above lowers the cost: each log-scale parameter that ended at a bound is set back to
+  /// its initial value and the others refitted from the optimum for this many iterations (0: none). A
+  /// spring run to its bound has pushed its mode out of the band and the others have settled without
+  /// it; no single-parameter probe then lowers the cost, a short refit does (rz.k.Dy of a hidden-payload
+  /// case at 100x its initial value, the truth at 0.63x: 1.23x the noise floor before, 1.05x after a
+  /// 20-iteration refit from its initial value).
+  int bound_reset_iterations = 20;
   /// Called after each iteration; the library never prints. May be empty.
   std::function<void(const FitProgress&)> progress;
 };
@@ -254,7 +261,8 @@ inline constexpr double kSeriesProbeShares[] = {0.1, 0.5, 0.9};
 /// (FitOptions::probe_initial_values). When none of these lowers the cost, the series probes
 /// (FitOptions::probe_series): each pair of `series` with its compliance c kept and a's share set to
 /// kSeriesProbeShares, to the share of the initial values and to 1 - the current share; and the pair
-/// set back to its initial values. The fit restarts from the best probe that lowers the cost by more
+/// set back to its initial values. When none of these lowers it either, the bound resets
+/// (FitOptions::bound_reset_iterations). The fit restarts from the best probe that lowers the cost by more
 /// than probe_min_improvement and the restarted fit is kept when it ends lower. The probes of a kind are evaluated on the threads of
 /// common/parallel.h when the problem has a Clone() (the choice does not depend on the thread count).
 /// num_evaluations counts the probes; time_s covers everything.
