@@ -6,7 +6,10 @@
 #include <optional>
 #include <sstream>
 
+#include "stagefit/common/error.h"
 #include "stagefit/fit/model_fit.h"
+#include "stagefit/kinematics/rigid_transform.h"
+#include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/parameters.h"
 
@@ -19,6 +22,62 @@ double Now() {
 
 double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// The turned-channel step of LoopOptions::turned_channel_deg on `current`.
+void AddTurnedChannel(const measurement::FrfData& measurement,
+                      const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
+                      LoopSummary* summary) {
+  if (comparison.CorrectableChannels().empty()) return;
+  std::vector<measurement::ChannelDirectionEstimate> estimates;
+  try {
+    estimates = measurement::EstimateChannelDirections(measurement, comparison.frame_origin_W(),
+                                                       options.diagnose.comparison.fmin_hz,
+                                                       options.diagnose.comparison.fmax_hz);
+  } catch (const InputError&) {
+    return;
+  }
+  const measurement::ChannelDirectionEstimate* turned = nullptr;
+  for (const auto& e : estimates) {
+    if (!e.estimable || e.angle_rad * 180 / M_PI <= options.turned_channel_deg) continue;
+    if (!turned || e.residual_share < turned->residual_share) turned = &e;
+  }
+  if (!turned) return;
+  for (const auto& e : current->effects) {
+    if (e.name == "sensor-geometry" && e.location == turned->name) return;  // already corrected
+  }
+  const Eigen::Vector3d axis = turned->declared_W.cross(turned->estimated_W);
+  if (axis.norm() < 1e-12) return;
+  const auto euler =
+      kinematics::EulerFromRotation(Eigen::AngleAxisd(turned->angle_rad, axis.normalized()).toRotationMatrix());
+  model::Effect effect;
+  effect.name = "sensor-geometry";
+  effect.location = turned->name;
+  effect.parameters = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0},
+                       {"rx", euler.alpha_rad}, {"ry", euler.beta_rad}, {"rz", euler.gamma_rad}};
+  model::ModelSpec with = *current;
+  try {
+    model::ApplyEffect(with, effect);
+    // The model's and the other effects' parameters refitted; the turn held at the estimate.
+    const std::string own = "sensor-geometry@" + turned->name + ".";
+    std::vector<model::ParameterInfo> params;
+    for (const auto& p : model::MatchParameters(with, model::WithEffectParameters(options.diagnose.params, with))) {
+      if (p.name.rfind(own, 0) != 0) params.push_back(p);
+    }
+    fit::FitModel(with, comparison, params, options.fit);
+  } catch (const std::exception&) {
+    return;
+  }
+  const double before = summary->history.back().error, after = comparison.Error(with);
+  if (!(after <= 1.05 * before)) return;
+  char action[160];
+  std::snprintf(action, sizeof action, "channel %s turned %.1f deg (its rigid-body direction), refit", turned->name.c_str(),
+                turned->angle_rad * 180 / M_PI);
+  summary->history.push_back({action, with.effects.back().ToString(), after});
+  if (options.progress) options.progress(std::string(action) + ": error " + std::to_string(after));
+  summary->effects_added.clear();
+  for (const auto& e : with.effects) summary->effects_added.push_back(e.ToString());
+  *current = with;
 }
 
 }  // namespace
@@ -128,6 +187,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {
     summary.stop_reason = "at the noise floor";
   }
+  if (options.turned_channel_deg > 0) AddTurnedChannel(measurement, comparison, options, &current, &summary);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;
   for (size_t k = 1; k < summary.history.size(); ++k) {
