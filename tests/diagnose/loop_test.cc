@@ -54,6 +54,18 @@ TEST(Loop, AddsTheHiddenEffectAndStopsAtTheFloor) {
   EXPECT_EQ(FormatLoopHistory(summary).rfind("step,action,effect,error,noise_floor,times_floor\n", 0), 0u);
 }
 
+// A single-effect case of tests/bench/eval_loop (5-600 Hz, `num_frequencies`, the seed's own noise and
+// scatter) whose hidden effect is `effect` ("<name>@<location>").
+void MakeEvalLoopCase(uint64_t seed, int num_frequencies, const std::string& effect, synthetic::HiddenEffectCase* c) {
+  synthetic::HiddenEffectOptions o;
+  o.fmin_hz = 5;
+  o.fmax_hz = 600;
+  o.num_frequencies = num_frequencies;
+  *c = synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), seed, o);
+  ASSERT_EQ(c->effects.size(), 1u);
+  ASSERT_EQ(c->effects[0].name + "@" + c->effects[0].location, effect);
+}
+
 // A coupling in the hexapod (seed 5008 of eval_loop: correlation -0.56, 600 Hz, 838 frequencies) that
 // the first stiffness fit cannot mimic: it stops at 35x the floor, and every candidate fitted from there
 // stays far above it (a joint offset was added at 27x). With the baseline that far
@@ -63,13 +75,8 @@ TEST(Loop, AddsTheHiddenEffectAndStopsAtTheFloor) {
 // the bent baseline gets a refinement slot and is found without the rule).
 TEST(Loop, ACandidateTheBentBaselineTrapsIsFoundFromTheModelAsGiven) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions o;
-  o.fmin_hz = 5;
-  o.fmax_hz = 600;
-  o.num_frequencies = 838;
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 5008, o);
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "coupled-stiffness@hexapod.Dx-Ry");
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(5008, 838, "coupled-stiffness@hexapod.Dx-Ry", &c));
   LoopOptions options = Options({});
   options.max_rounds = 1;
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
@@ -91,13 +98,8 @@ TEST(Loop, ACandidateTheBentBaselineTrapsIsFoundFromTheModelAsGiven) {
 // truth. (Effect-free data get no such step: AddsNothingToEffectFreeData.)
 TEST(Loop, AddsATurnedChannelTheStiffnessesAbsorbed) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions o;
-  o.fmin_hz = 5;
-  o.fmax_hz = 600;
-  o.num_frequencies = 477;
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 7006, o);
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "sensor-geometry@a2x");
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(7006, 477, "sensor-geometry@a2x", &c));
   const LoopSummary summary = RunLoop(nominal, c.measurement, Options({}));
   std::cout << summary.HistoryTable();
   ASSERT_EQ(summary.effects_added.size(), 1u);

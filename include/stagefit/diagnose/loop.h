@@ -38,7 +38,7 @@ struct LoopOptions {
   /// and the model refitted; kept unless the error rises by more than 5 %. In compliance space a turned
   /// accelerometer is often absorbed by the stiffnesses at the noise floor (15 degrees: 1.03x the floor,
   /// 2.8 % off the noise-free truth), while its direction estimate stands out (15.3 degrees; sound
-  /// channels of effect-free cases at most 0.8). 0: no such step.
+  /// channels of six effect-free cases at most 0.8). 0: no such step.
   double turned_channel_deg = 5.0;
   std::function<void(const std::string&)> progress;  ///< one line per step, for a terminal
 };
