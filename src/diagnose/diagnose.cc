@@ -158,6 +158,14 @@ bool SameCandidate(const Candidate& a, const Candidate& b) {
 
 }  // namespace
 
+std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirectionEstimate& estimate) {
+  const Eigen::Vector3d axis = estimate.declared_W.cross(estimate.estimated_W);
+  if (!estimate.estimable || axis.norm() < 1e-12) return std::nullopt;
+  const auto euler =
+      kinematics::EulerFromRotation(Eigen::AngleAxisd(estimate.angle_rad, axis.normalized()).toRotationMatrix());
+  return Eigen::Vector3d(euler.alpha_rad, euler.beta_rad, euler.gamma_rad);
+}
+
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
@@ -240,10 +248,7 @@ std::map<std::string, ChannelTurn> EstimateChannelTurns(const measurement::FrfDa
     return turns;
   }
   for (const auto& e : estimates) {
-    const Eigen::Vector3d axis = e.declared_W.cross(e.estimated_W);
-    if (!e.estimable || axis.norm() < 1e-12) continue;
-    const auto euler = kinematics::EulerFromRotation(Eigen::AngleAxisd(e.angle_rad, axis.normalized()).toRotationMatrix());
-    turns[e.name] = {Eigen::Vector3d(euler.alpha_rad, euler.beta_rad, euler.gamma_rad), e.angle_rad, e.residual_share};
+    if (const auto euler = CalcChannelTurn(e)) turns[e.name] = {*euler, e.angle_rad, e.residual_share};
   }
   return turns;
 }

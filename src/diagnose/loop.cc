@@ -8,7 +8,6 @@
 
 #include "stagefit/common/error.h"
 #include "stagefit/fit/model_fit.h"
-#include "stagefit/kinematics/rigid_transform.h"
 #include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/parameters.h"
@@ -46,15 +45,12 @@ void AddTurnedChannel(const measurement::FrfData& measurement,
   for (const auto& e : current->effects) {
     if (e.name == "sensor-geometry" && e.location == turned->name) return;  // already corrected
   }
-  const Eigen::Vector3d axis = turned->declared_W.cross(turned->estimated_W);
-  if (axis.norm() < 1e-12) return;
-  const auto euler =
-      kinematics::EulerFromRotation(Eigen::AngleAxisd(turned->angle_rad, axis.normalized()).toRotationMatrix());
+  const auto euler = CalcChannelTurn(*turned);
+  if (!euler) return;
   model::Effect effect;
   effect.name = "sensor-geometry";
   effect.location = turned->name;
-  effect.parameters = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0},
-                       {"rx", euler.alpha_rad}, {"ry", euler.beta_rad}, {"rz", euler.gamma_rad}};
+  effect.parameters = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}, {"rx", (*euler)(0)}, {"ry", (*euler)(1)}, {"rz", (*euler)(2)}};
   model::ModelSpec with = *current;
   try {
     model::ApplyEffect(with, effect);
@@ -121,6 +117,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // The model's effects with their fitted parameters, in order: those of the model as given, then
   // those the loop adds.
   std::vector<model::Effect> added = spec.effects;
+  // Every round's diagnosis makes its second starts from the model the user gave, not from the fitted
+  // one it receives.
+  DiagnoseOptions d = options.diagnose;
+  d.progress = options.progress;
+  if (d.as_given.empty()) {
+    for (const auto& p : model::ListParameters(spec)) d.as_given[p.name] = model::GetParameter(spec, p);
+  }
   summary.stop_reason = "the round limit";
   for (int round = 0; round < options.max_rounds; ++round) {
     if (at_floor(summary.history.back().error)) {
@@ -128,12 +131,6 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       break;
     }
     say("round " + std::to_string(round + 1) + ": diagnose");
-    DiagnoseOptions d = options.diagnose;
-    d.progress = options.progress;
-    // The diagnosis' second starts from the model the user gave, not from the fitted one it receives.
-    if (d.as_given.empty()) {
-      for (const auto& p : model::ListParameters(spec)) d.as_given[p.name] = model::GetParameter(spec, p);
-    }
     const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
     summary.last_verdict = diagnosis.verdict;
     summary.last_diagnosis = diagnosis;

@@ -30,6 +30,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,7 @@
 #include "stagefit/compare/residuals.h"
 #include "stagefit/fit/least_squares.h"
 #include "stagefit/measurement/frf_data.h"
+#include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_spec.h"
 
@@ -117,6 +119,11 @@ struct Candidate {
 /// payload's CoM offset, a sensor's position) within 1 % of the bound of its search range, where a fit
 /// stops because it cannot go further.
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect);
+
+/// The Euler angles (rx, ry, rz, rad; kinematics::EulerFromRotation) of the turn that carries a channel's
+/// declared direction onto its estimated one, about their common normal; nullopt when the estimate is
+/// not estimable or the two directions are parallel.
+std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirectionEstimate& estimate);
 
 /// The verdict's thresholds against the noise floor (compare::Comparison::CalcNoiseFloor()): at most
 /// this many times the floor is done; above the second, with no candidate that helps or with the best
