@@ -119,6 +119,8 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"history", history},
                                {"effects_added", summary.effects_added},
                                {"stop_reason", summary.stop_reason},
+                               {"confirmed", summary.confirmed},
+                               {"conclusion", summary.conclusion},
                                {"channel_faults", channel_faults},
                                {"last_verdict", summary.last_verdict},
                                {"final_model", o->out},

@@ -166,13 +166,24 @@ std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirecti
   return Eigen::Vector3d(euler.alpha_rad, euler.beta_rad, euler.gamma_rad);
 }
 
-std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect) {
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
   const auto mass = effect.parameters.find("mass");
   if (model::FindEffectDefinition(effect.name).adds_mass && mass != effect.parameters.end() &&
       mass->second > stack_kg) {
     return Format("its fitted mass %.4g kg is more than the whole stack's %.4g kg", mass->second, stack_kg);
+  }
+  const auto k = effect.parameters.find("k");
+  if (model::FindEffectDefinition(effect.name).adds_mass && mass != effect.parameters.end() && k != effect.parameters.end() &&
+      band_low_hz > 0 && mass->second > 0) {
+    const double local_hz = std::sqrt(std::max(k->second, 0.0) / mass->second) / (2 * M_PI);
+    if (local_hz < band_low_hz) {
+      return Format("its local mode at %.3g Hz is below the compared band (from %.3g Hz): in the band the body stands still "
+                    "and its joint acts as a spring from the stage to the ground, which is no body; something ties the "
+                    "stage to the ground (a cable, a hose)",
+                    local_hz, band_low_hz);
+    }
   }
   const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
   model::Effect nominal = effect;
@@ -702,7 +713,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   }
   // Physically absurd fits are not claimed (they are kept in the list, marked, after those that help).
   for (auto& c : unique) {
-    c.implausible = ImplausibleBecause(summary.baseline, c.effect);
+    c.implausible = ImplausibleBecause(summary.baseline, c.effect, comparison.frequency_hz()(0));
     if (!c.implausible.empty()) c.helps = false;
   }
   std::stable_partition(unique.begin(), unique.end(), [](const Candidate& c) { return c.helps; });

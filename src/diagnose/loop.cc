@@ -1,5 +1,6 @@
 #include "stagefit/diagnose/loop.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -74,6 +75,49 @@ void AddTurnedChannel(const measurement::FrfData& measurement,
   summary->effects_added.clear();
   for (const auto& e : with.effects) summary->effects_added.push_back(e.ToString());
   *current = with;
+}
+
+/// LoopSummary::conclusion of `summary` (its history, floor and effects set), `final` evaluated by
+/// `comparison` for where the remaining error sits.
+std::string Conclusion(const LoopSummary& summary, const compare::Comparison& comparison, const model::ModelSpec& final) {
+  const double error = summary.history.back().error;
+  std::string effects;
+  for (const auto& e : summary.effects_added) effects += (effects.empty() ? "" : ", ") + e.substr(0, e.find(':'));
+  char line[512];
+  if (!summary.noise_floor.known || !(summary.noise_floor.floor > 0)) {
+    return effects.empty() ? "No noise floor (the measurement has no coherence): nothing added, nothing confirmed."
+                           : "No noise floor (the measurement has no coherence): the effects added (" + effects +
+                                 ") lower the error, but whether they explain the measurement cannot be told.";
+  }
+  const double times = error / summary.noise_floor.floor;
+  if (summary.confirmed) {
+    std::snprintf(line, sizeof line, "The model ends at the noise floor (%.2f x %.4f)", times, summary.noise_floor.floor);
+    return std::string(line) + (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
+                                                : " with " + effects + ": they explain the measurement.");
+  }
+  const compare::ComparisonResult result = comparison.Evaluate(final);
+  auto bands = result.bands;
+  std::sort(bands.begin(), bands.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
+  auto elements = result.elements;
+  std::sort(elements.begin(), elements.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
+  std::string where;
+  for (size_t k = 0; k < bands.size() && k < 2; ++k) {
+    std::snprintf(line, sizeof line, "%s%.0f-%.0f Hz (%.0f %%)", k ? ", " : "", bands[k].band.low_hz, bands[k].band.high_hz, 100 * bands[k].share);
+    where += line;
+  }
+  for (size_t k = 0; k < elements.size() && k < 3; ++k) {
+    std::snprintf(line, sizeof line, "%s%s (%.0f %%)", k ? ", " : "; elements ", elements[k].name.c_str(), 100 * elements[k].share);
+    where += line;
+  }
+  std::snprintf(line, sizeof line, "Not explained: the model ends at %.2f x the noise floor %.4f (stopped: %s). "
+                "Something outside the catalogue is still missing; its error is in ", times, summary.noise_floor.floor,
+                summary.stop_reason.c_str());
+  std::string text = line + where + ".";
+  if (!effects.empty()) {
+    text += " The effects added on the way (" + effects +
+            ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed.";
+  }
+  return text;
 }
 
 }  // namespace
@@ -185,11 +229,16 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.stop_reason = "at the noise floor";
   }
   if (options.turned_channel_deg > 0) AddTurnedChannel(measurement, comparison, options, &current, &summary);
+  summary.confirmed = floor.known && floor.floor > 0 && at_floor(summary.history.back().error);
+  summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;
   for (size_t k = 1; k < summary.history.size(); ++k) {
     const LoopStep& step = summary.history[k];
     current.history.push_back({"loop: " + step.action, step.error, step.effect.empty() ? "" : "--with " + step.effect});
+  }
+  if (!summary.confirmed && !summary.effects_added.empty()) {
+    current.history.push_back({"loop: effects not confirmed (the model is not at the noise floor)", summary.history.back().error, ""});
   }
   summary.final_model = current;
   summary.time_s = Now() - start;
@@ -215,6 +264,7 @@ std::string LoopSummary::HistoryTable() const {
     for (const auto& e : effects_added) out << " --with \"" << e << "\"";
   }
   out << "\n";
+  if (!conclusion.empty()) out << conclusion << "\n";
   return out.str();
 }
 

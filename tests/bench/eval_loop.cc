@@ -94,11 +94,12 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
   o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
   o.near_truth = distance <= 0.01;
   o.time_s = summary.time_s;
-  std::printf("seed %7llu  %4.0f Hz %4d pts  %-40s -> %-40s  error %.4f = %.2fx floor %.4f  |to truth| %.4f  %s%s%s %.1f s\n",
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-40s -> %-40s  error %.4f = %.2fx floor %.4f  |to truth| %.4f  %s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies,
               truth_text.empty() ? "(none)" : truth_text.c_str(), added_text.empty() ? "(none)" : added_text.c_str(),
               summary.history.back().error, summary.history.back().error / floor, floor, distance,
-              o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "", summary.time_s);
+              o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "",
+              summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", summary.time_s);
   if (verbose) std::printf("%s", summary.HistoryTable().c_str());
   std::fflush(stdout);
   return o;
@@ -107,7 +108,8 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
 constexpr double kOutsideVisibility = 8.0;
 
 struct OutsideOutcome {
-  bool claimed = false;
+  bool added = false;    // an effect of the catalogue added on the way
+  bool claimed = false;  // and confirmed: the loop ends at the floor with it (LoopSummary::confirmed)
   bool at_floor = false;  // the loop ended within 1.2x the floor: the hidden part is absorbed or unseen in this space
   bool band = false;     // a worst band named holds the peak of the change
   bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
@@ -127,7 +129,8 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   const diagnose::LoopSummary summary = diagnose::RunLoop(nominal, hidden.measurement, loop_options);
   const diagnose::DiagnoseSummary& last = summary.last_diagnosis;
   OutsideOutcome o;
-  o.claimed = !summary.effects_added.empty();
+  o.added = !summary.effects_added.empty();
+  o.claimed = o.added && summary.confirmed;
   for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
     o.band = o.band || (hidden.peak_hz >= last.worst_bands[k].band.low_hz && hidden.peak_hz <= last.worst_bands[k].band.high_hz);
   }
@@ -155,7 +158,7 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
               hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), added.empty() ? "(nothing added)" : added.c_str(),
-              summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : "", o.band ? "band " : "",
+              summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : "",
               o.channel ? "channel " : "", summary.time_s);
   if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
   std::fflush(stdout);
@@ -206,12 +209,13 @@ int main(int argc, char** argv) {
   run(two_effects, 2, first_seed + cases, &two);
   run(effect_free, 0, first_seed + cases + two_effects, &none);
   run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
-  int outside_clean = 0, outside_band = 0, outside_channel = 0, outside_floor = 0;
+  int outside_clean = 0, outside_added = 0, outside_band = 0, outside_channel = 0, outside_floor = 0;
   double outside_time = 0;
   const char* kinds[] = {"plate-bending", "plate-breathing", "cable"};
   for (int c = 0; c < outside; ++c) {
     const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c, kinds[c % 3], verbose);
     outside_clean += !o.claimed;
+    outside_added += o.added;
     outside_floor += o.at_floor;
     outside_band += !o.at_floor && o.band;
     outside_channel += !o.at_floor && o.channel;
@@ -244,9 +248,9 @@ int main(int argc, char** argv) {
                 none.clean, pct(none.clean, none.n), none.floor, none.time / none.n);
   }
   if (outside) {
-    std::printf("outside the catalogue (%d): nothing added %d (%.0f %%); ended at the floor %d (nothing to localise); "
-                "of the %d above it, worst band named %d, worst channel named %d; mean %.1f s\n",
-                outside, outside_clean, pct(outside_clean, outside), outside_floor, outside - outside_floor, outside_band,
+    std::printf("outside the catalogue (%d): no effect claimed %d (%.0f %%; added but not confirmed %d); ended at the floor %d "
+                "(nothing to localise); of the %d above it, worst band named %d, worst channel named %d; mean %.1f s\n",
+                outside, outside_clean, pct(outside_clean, outside), outside_added, outside_floor, outside - outside_floor, outside_band,
                 outside_channel, outside_time / outside);
   }
   return 0;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <iostream>
 #include <string>
@@ -79,6 +80,26 @@ TEST(ImplausibleBecause, HeavierThanTheStackOrAtABound) {
   EXPECT_EQ(ImplausibleBecause(nominal, offset), "");
   offset.parameters["dx"] = -0.2995;
   EXPECT_NE(ImplausibleBecause(nominal, offset).find("dx"), std::string::npos);
+}
+
+// A body whose local mode lies below the compared band stands still in it: its mass is not determined
+// and its joint acts as a spring to the ground. Such a fit is not claimed; a body that resonates in or
+// above the band is.
+TEST(ImplausibleBecause, ABodyThatStandsStillInTheBand) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  model::Effect body{"extra-body", "hexapod", model::DefaultEffectParameters(nominal, "extra-body", "hexapod")};
+  auto set_local_mode = [&](double mass, double hz) {
+    body.parameters["mass"] = mass;
+    body.parameters["k"] = mass * std::pow(2 * M_PI * hz, 2);
+  };
+  set_local_mode(1078.0, 1.34);  // the cable of docs/diagnose.md, fitted as a body
+  const std::string why = ImplausibleBecause(nominal, body, 5.0);
+  EXPECT_NE(why.find("local mode at 1.34 Hz is below the compared band (from 5 Hz)"), std::string::npos) << why;
+  EXPECT_EQ(ImplausibleBecause(nominal, body), "");  // no band given: not checked
+  set_local_mode(1078.0, 5.5);
+  EXPECT_EQ(ImplausibleBecause(nominal, body, 5.0), "");
+  set_local_mode(3.0, 278.0);  // above a 150 Hz band: it still acts in the band as a mass on a spring
+  EXPECT_EQ(ImplausibleBecause(nominal, body, 5.0), "");
 }
 
 // A search on a thinned grid: every candidate is scored on all frequencies, and the result agrees

@@ -11,6 +11,7 @@
 
 #include "stagefit/compare/residuals.h"
 #include "stagefit/model/model_file.h"
+#include "stagefit/synthetic/outside_catalogue.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 namespace stagefit::diagnose {
@@ -37,6 +38,8 @@ TEST(Loop, AddsTheHiddenEffectAndStopsAtTheFloor) {
   EXPECT_EQ(summary.effects_added[0].rfind("joint-offset@hexapod:", 0), 0u) << summary.effects_added[0];
   EXPECT_EQ(summary.stop_reason, "at the noise floor");
   EXPECT_LE(summary.history.back().error, kDoneTimesFloor * summary.noise_floor.floor);
+  EXPECT_TRUE(summary.confirmed);
+  EXPECT_NE(summary.conclusion.find("with joint-offset@hexapod: they explain the measurement"), std::string::npos) << summary.conclusion;
   for (size_t k = 1; k < summary.history.size(); ++k) {
     EXPECT_LE(summary.history[k].error, summary.history[k - 1].error) << summary.history[k].action;
   }
@@ -79,6 +82,7 @@ TEST(Loop, ACandidateTheBentBaselineTrapsIsFoundFromTheModelAsGiven) {
   ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(5008, 838, "coupled-stiffness@hexapod.Dx-Ry", &c));
   LoopOptions options = Options({});
   options.max_rounds = 1;
+  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
   std::cout << summary.HistoryTable();
   ASSERT_TRUE(summary.noise_floor.known);
@@ -126,6 +130,37 @@ TEST(Loop, AddsNothingToEffectFreeData) {
   EXPECT_TRUE(summary.effects_added.empty());
   EXPECT_EQ(summary.stop_reason, "at the noise floor");
   EXPECT_EQ(summary.history.size(), 2u);  // as given, fit
+  EXPECT_TRUE(summary.confirmed);
+  EXPECT_NE(summary.conclusion.find("its parameters alone explain the measurement"), std::string::npos) << summary.conclusion;
+}
+
+// A cable between the granite and the hexapod (outside the catalogue; eval_loop's seed 5023): a loss
+// factor in the hexapod lowers the error, but the model stays clearly above the floor, so the loop
+// does not confirm it and says where the error is. (Only loss factors are tried, in one round, for time;
+// with the whole catalogue the loop ends at 1.67x the floor with the same effect.)
+TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions o;
+  o.fmin_hz = 5.0;
+  o.fmax_hz = 150.0;
+  o.num_frequencies = 300;
+  o.noise_min = 0.01;
+  o.noise_max = 0.03;
+  o.min_visibility = 8.0;
+  const auto c = synthetic::MakeOutsideCatalogueCase(nominal, 5023, "cable", o);
+  LoopOptions options = Options({"structural-damping"});
+  options.max_rounds = 1;
+  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
+  std::cout << summary.HistoryTable();
+  ASSERT_TRUE(summary.noise_floor.known);
+  ASSERT_GT(summary.history.back().error, 1.3 * summary.noise_floor.floor);
+  ASSERT_FALSE(summary.effects_added.empty());
+  EXPECT_FALSE(summary.confirmed);
+  EXPECT_EQ(summary.conclusion.rfind("Not explained: the model ends at", 0), 0u) << summary.conclusion;
+  EXPECT_NE(summary.conclusion.find("Hz ("), std::string::npos) << summary.conclusion;  // a band
+  EXPECT_NE(summary.conclusion.find("are not confirmed"), std::string::npos) << summary.conclusion;
+  EXPECT_EQ(summary.final_model.history.back().step, "loop: effects not confirmed (the model is not at the noise floor)");
 }
 
 }  // namespace

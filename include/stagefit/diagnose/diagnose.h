@@ -117,8 +117,11 @@ struct Candidate {
 /// Why a fitted effect is physically absurd, or empty: a payload or extra body heavier than the whole
 /// stack (the sum of `baseline`'s body masses), or a length parameter (a joint's stiffness centre, a
 /// payload's CoM offset, a sensor's position) within 1 % of the bound of its search range, where a fit
-/// stops because it cannot go further.
-std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect);
+/// stops because it cannot go further; or a body on a joint (extra-body) whose local mode sqrt(k/mass)
+/// lies below `band_low_hz`, the lowest compared frequency (0: not checked): in the band such a body
+/// stands still, so its fitted mass is not determined and its joint acts as a spring to the ground (a
+/// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz).
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0);
 
 /// The Euler angles (rx, ry, rz, rad; kinematics::EulerFromRotation) of the turn that carries a channel's
 /// declared direction onto its estimated one, about their common normal; nullopt when the estimate is
