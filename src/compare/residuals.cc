@@ -243,7 +243,10 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         } else {
           var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
         }
-        if (!projected) c.noise_sigma_.push_back(var_X.cwiseSqrt());
+        if (!projected) {
+          c.noise_sigma_.push_back(var_X.cwiseSqrt());
+          c.raw_noise_var_.push_back(var_L);
+        }
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
             const double sigma = std::sqrt(var_X(a, b));
@@ -479,24 +482,31 @@ model::SecondOrderSystem Comparison::BuildModelSystem(const model::AssembledMode
   return model::BuildSystem(model, inputs, outputs);
 }
 
-const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelSpec& spec,
-                                                             std::vector<Eigen::MatrixXcd>* storage) const {
+bool Comparison::CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const {
   if (space_ != ComparisonSpace::kCompliance || raw_measured_.empty() || spec.geometry_corrections.empty()) {
-    return measured_;
+    return false;
   }
   std::vector<measurement::ChannelGeometry> outputs = raw_outputs_, inputs = raw_inputs_;
   const bool corrected_outputs = ApplyGeometryCorrections(spec.geometry_corrections, &outputs);
   const bool corrected_inputs = ApplyGeometryCorrections(spec.geometry_corrections, &inputs);
-  if (!corrected_outputs && !corrected_inputs) return measured_;
+  if (!corrected_outputs && !corrected_inputs) return false;
   const std::string what = "comparison with '" + source_ + "' under the model's geometry corrections";
   const Eigen::MatrixXd J_a = measurement::CalcSensorJacobian(outputs, p_WXo_);
   const Eigen::MatrixXd J_F = measurement::CalcImpactJacobian(inputs, p_WXo_);
   measurement::CheckObservable(J_a, what + ": sensors");
   measurement::CheckObservable(J_F, what + ": impacts");
-  const Eigen::MatrixXcd P = measurement::PseudoInverse(J_a).cast<std::complex<double>>();
-  const Eigen::MatrixXcd Q = measurement::PseudoInverse(J_F.transpose()).cast<std::complex<double>>();
+  *P = measurement::PseudoInverse(J_a);
+  *Q = measurement::PseudoInverse(J_F.transpose());
+  return true;
+}
+
+const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelSpec& spec,
+                                                             std::vector<Eigen::MatrixXcd>* storage) const {
+  Eigen::MatrixXd P, Q;
+  if (!CorrectedProjection(spec, &P, &Q)) return measured_;
+  const Eigen::MatrixXcd Pc = P.cast<std::complex<double>>(), Qc = Q.cast<std::complex<double>>();
   storage->resize(raw_measured_.size());
-  for (size_t k = 0; k < raw_measured_.size(); ++k) (*storage)[k] = P * raw_measured_[k] * Q;
+  for (size_t k = 0; k < raw_measured_.size(); ++k) (*storage)[k] = Pc * raw_measured_[k] * Qc;
   return *storage;
 }
 
@@ -508,14 +518,24 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
     side->norm = weight_norm_;
     return;
   }
-  // Re-projected: each point's SNR again (header), as Create() weighs the declared projection.
+  // Re-projected: each point's SNR again (header), as Create() weighs the declared projection, with the
+  // raw noise propagated through this projection. (With the declared projection's noise, a turned
+  // channel's correction weighed the elements it makes noisier as if they were not: the noise-free
+  // truth with its correction scored 0.0835 against a floor of 0.039, seed 2013 of docs/diagnose.md.)
+  Eigen::MatrixXd P, Q;
+  const bool reprojected = CorrectedProjection(spec, &P, &Q);
+  const Eigen::MatrixXd P2 = reprojected ? Eigen::MatrixXd(P.cwiseAbs2()) : Eigen::MatrixXd();
+  const Eigen::MatrixXd Q2 = reprojected ? Eigen::MatrixXd(Q.cwiseAbs2()) : Eigen::MatrixXd();
+  std::vector<Eigen::MatrixXd> sigma_X(reprojected ? raw_noise_var_.size() : 0);
+  for (size_t k = 0; k < sigma_X.size(); ++k) sigma_X[k] = (P2 * raw_noise_var_[k] * Q2).cwiseSqrt();
+  const std::vector<Eigen::MatrixXd>& noise_sigma = reprojected ? sigma_X : noise_sigma_;
   double sum_w2 = 0.0;
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];
     const ElementIndex idx = used_elements_[pt.element];
-    const double sigma = noise_sigma_[pt.frequency](idx.output, idx.input);
+    const double sigma = noise_sigma[pt.frequency](idx.output, idx.input);
     const double magnitude = std::abs((*side->values)[pt.frequency](idx.output, idx.input));
-    side->weights[p] = sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
+    side->weights[p] = !std::isfinite(sigma) ? 0.0 : sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
   }
   // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
   // Create(): it stops counting (header). Points are element-major, so each element's are contiguous.

@@ -335,6 +335,9 @@ class Comparison {
     double norm = 1.0;            // sqrt(sum w^2)
   };
   void SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const;
+  // The projection H_X = P H_L Q of the raw channels under `spec`'s geometry corrections; false (P, Q
+  // untouched) when the measurement is not re-projected for it.
+  bool CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const;
   // e_p for every point, from the model's FRF values (layout of response::FrfArray::values) and the
   // measured side.
   void CalcLogErrors(const Eigen::MatrixXcd& model_values, const std::vector<Eigen::MatrixXcd>& measured,
@@ -365,8 +368,11 @@ class Comparison {
   std::vector<Eigen::MatrixXcd> raw_measured_;
   std::vector<measurement::ChannelGeometry> raw_outputs_, raw_inputs_;
   // With coherence: the propagated noise standard deviation of every projected point (6 x 6 per
-  // frequency) and the weight cap, to weigh a re-projected measurement.
+  // frequency), the raw channels' noise variance it was propagated from (per frequency, outputs x
+  // inputs; infinite where the raw SNR is 0) and the weight cap, to weigh a re-projected measurement
+  // with the noise its own projection propagates.
   std::vector<Eigen::MatrixXd> noise_sigma_;
+  std::vector<Eigen::MatrixXd> raw_noise_var_;
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
 };
