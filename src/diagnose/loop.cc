@@ -109,9 +109,11 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
     std::snprintf(line, sizeof line, "%s%s (%.0f %%)", k ? ", " : "; elements ", elements[k].name.c_str(), 100 * elements[k].share);
     where += line;
   }
-  std::snprintf(line, sizeof line, "Not explained: the model ends at %.2f x the noise floor %.4f (stopped: %s). "
-                "Something outside the catalogue is still missing; its error is in ", times, summary.noise_floor.floor,
-                summary.stop_reason.c_str());
+  const bool round_limit = summary.stop_reason == "the round limit";
+  std::snprintf(line, sizeof line, "Not explained: the model ends at %.2f x the noise floor %.4f (stopped: %s). %s; its error is in ",
+                times, summary.noise_floor.floor, summary.stop_reason.c_str(),
+                round_limit ? "Something is still missing (more rounds, --max-rounds, may find it in the catalogue)"
+                            : "Something outside the catalogue is still missing");
   std::string text = line + where + ".";
   if (!effects.empty()) {
     text += " The effects added on the way (" + effects +

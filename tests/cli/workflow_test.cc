@@ -164,6 +164,9 @@ TEST(LoopCommand, EndsAtTheNoiseFloorOfTheShippedExample) {
   ASSERT_EQ(report["effects_added"].size(), 1u) << r.output;
   EXPECT_EQ(report["effects_added"][0].get<std::string>().rfind("payload@hexapod:", 0), 0u);
   EXPECT_EQ(report["stop_reason"].get<std::string>(), "at the noise floor");
+  EXPECT_TRUE(report["confirmed"].get<bool>());
+  EXPECT_NE(report["conclusion"].get<std::string>().find("with payload@hexapod: they explain the measurement"), std::string::npos)
+      << report["conclusion"];
   EXPECT_NE(r.output.find("x floor"), std::string::npos) << r.output;
   for (const char* f : {"plots/loop_history.csv", "plots/before/compare_frf.csv", "plots/after/compare_frf.csv"}) {
     EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
