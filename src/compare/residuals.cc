@@ -243,10 +243,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         } else {
           var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
         }
-        if (!projected) {
-          c.noise_sigma_.push_back(var_X.cwiseSqrt());
-          c.raw_noise_var_.push_back(var_L);
-        }
+        if (!projected) c.raw_noise_var_.push_back(var_L);
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
             const double sigma = std::sqrt(var_X(a, b));
@@ -500,20 +497,26 @@ bool Comparison::CorrectedProjection(const model::ModelSpec& spec, Eigen::Matrix
   return true;
 }
 
-const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelSpec& spec,
-                                                             std::vector<Eigen::MatrixXcd>* storage) const {
-  Eigen::MatrixXd P, Q;
-  if (!CorrectedProjection(spec, &P, &Q)) return measured_;
+const std::vector<Eigen::MatrixXcd>& Comparison::Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
+                                                           std::vector<Eigen::MatrixXcd>* storage) const {
   const Eigen::MatrixXcd Pc = P.cast<std::complex<double>>(), Qc = Q.cast<std::complex<double>>();
   storage->resize(raw_measured_.size());
   for (size_t k = 0; k < raw_measured_.size(); ++k) (*storage)[k] = Pc * raw_measured_[k] * Qc;
   return *storage;
 }
 
+const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelSpec& spec,
+                                                             std::vector<Eigen::MatrixXcd>* storage) const {
+  Eigen::MatrixXd P, Q;
+  return CorrectedProjection(spec, &P, &Q) ? Reproject(P, Q, storage) : measured_;
+}
+
 void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const {
-  side->values = &MeasuredFor(spec, &side->storage);
+  Eigen::MatrixXd P, Q;
+  const bool reprojected = CorrectedProjection(spec, &P, &Q);
+  side->values = reprojected ? &Reproject(P, Q, &side->storage) : &measured_;
   side->weights.resize(points_.size());
-  if (side->values == &measured_ || noise_sigma_.empty()) {
+  if (!reprojected || raw_noise_var_.empty()) {
     for (size_t p = 0; p < points_.size(); ++p) side->weights[p] = points_[p].weight;
     side->norm = weight_norm_;
     return;
@@ -522,13 +525,9 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
   // raw noise propagated through this projection. (With the declared projection's noise, a turned
   // channel's correction weighed the elements it makes noisier as if they were not: the noise-free
   // truth with its correction scored 0.0835 against a floor of 0.039, seed 2013 of docs/diagnose.md.)
-  Eigen::MatrixXd P, Q;
-  const bool reprojected = CorrectedProjection(spec, &P, &Q);
-  const Eigen::MatrixXd P2 = reprojected ? Eigen::MatrixXd(P.cwiseAbs2()) : Eigen::MatrixXd();
-  const Eigen::MatrixXd Q2 = reprojected ? Eigen::MatrixXd(Q.cwiseAbs2()) : Eigen::MatrixXd();
-  std::vector<Eigen::MatrixXd> sigma_X(reprojected ? raw_noise_var_.size() : 0);
-  for (size_t k = 0; k < sigma_X.size(); ++k) sigma_X[k] = (P2 * raw_noise_var_[k] * Q2).cwiseSqrt();
-  const std::vector<Eigen::MatrixXd>& noise_sigma = reprojected ? sigma_X : noise_sigma_;
+  const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
+  std::vector<Eigen::MatrixXd> noise_sigma(raw_noise_var_.size());
+  for (size_t k = 0; k < noise_sigma.size(); ++k) noise_sigma[k] = (P2 * raw_noise_var_[k] * Q2).cwiseSqrt();
   double sum_w2 = 0.0;
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];

@@ -338,6 +338,9 @@ class Comparison {
   // The projection H_X = P H_L Q of the raw channels under `spec`'s geometry corrections; false (P, Q
   // untouched) when the measurement is not re-projected for it.
   bool CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const;
+  // The raw measurement projected by P and Q into `storage` (returned).
+  const std::vector<Eigen::MatrixXcd>& Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
+                                                 std::vector<Eigen::MatrixXcd>* storage) const;
   // e_p for every point, from the model's FRF values (layout of response::FrfArray::values) and the
   // measured side.
   void CalcLogErrors(const Eigen::MatrixXcd& model_values, const std::vector<Eigen::MatrixXcd>& measured,
@@ -367,11 +370,9 @@ class Comparison {
   // declared channel geometry, for re-projection under geometry corrections.
   std::vector<Eigen::MatrixXcd> raw_measured_;
   std::vector<measurement::ChannelGeometry> raw_outputs_, raw_inputs_;
-  // With coherence: the propagated noise standard deviation of every projected point (6 x 6 per
-  // frequency), the raw channels' noise variance it was propagated from (per frequency, outputs x
-  // inputs; infinite where the raw SNR is 0) and the weight cap, to weigh a re-projected measurement
-  // with the noise its own projection propagates.
-  std::vector<Eigen::MatrixXd> noise_sigma_;
+  // With coherence: the raw channels' noise variance (per frequency, outputs x inputs; infinite where
+  // the raw SNR is 0) and the weight cap, to weigh a re-projected measurement with the noise its own
+  // projection propagates.
   std::vector<Eigen::MatrixXd> raw_noise_var_;
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
