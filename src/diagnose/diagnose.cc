@@ -166,6 +166,31 @@ std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirecti
   return Eigen::Vector3d(euler.alpha_rad, euler.beta_rad, euler.gamma_rad);
 }
 
+void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t max_elements,
+               std::vector<compare::BandError>* bands, std::vector<compare::ElementError>* elements) {
+  auto by_share = [](const auto& a, const auto& b) { return a.share > b.share; };
+  *bands = result.bands;
+  std::sort(bands->begin(), bands->end(), by_share);
+  if (bands->size() > max_bands) bands->resize(max_bands);
+  *elements = result.elements;
+  std::sort(elements->begin(), elements->end(), by_share);
+  if (elements->size() > max_elements) elements->resize(max_elements);
+}
+
+std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements) {
+  std::string text;
+  for (size_t k = 0; k < bands.size() && k < 2; ++k) {
+    text += (text.empty() ? "" : ", ") + Format("%.0f-%.0f Hz", bands[k].band.low_hz, bands[k].band.high_hz) +
+            Format(" (%.0f %%)", 100 * bands[k].share);
+  }
+  std::string named;
+  for (size_t k = 0; k < elements.size() && k < 3; ++k) {
+    named += (named.empty() ? "" : ", ") + elements[k].name + Format(" (%.0f %%)", 100 * elements[k].share);
+  }
+  if (!named.empty()) text += (text.empty() ? "" : "; elements ") + named;
+  return text;
+}
+
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
@@ -722,12 +747,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
 
   // 4. Where.
   compare::ComparisonResult result = comparison.Evaluate(summary.baseline);
-  summary.worst_bands = result.bands;
-  std::sort(summary.worst_bands.begin(), summary.worst_bands.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
-  if (summary.worst_bands.size() > 5) summary.worst_bands.resize(5);
-  summary.worst_elements = result.elements;
-  std::sort(summary.worst_elements.begin(), summary.worst_elements.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
-  if (summary.worst_elements.size() > 8) summary.worst_elements.resize(8);
+  SortWorst(result, 5, 8, &summary.worst_bands, &summary.worst_elements);
   std::optional<compare::ModePairing> pairing;
   try {
     pairing = compare::PairModes(comparison, result.model, summary.baseline);
@@ -761,19 +781,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   auto times_floor = [&](double error) { return floor_known ? error / floor.floor : std::numeric_limits<double>::quiet_NaN(); };
   // Where the remaining error sits, in words: the worst bands and elements (and channels that do not
   // move rigidly with the others).
-  auto where_words = [&] {
-    std::string text;
-    for (size_t k = 0; k < summary.worst_bands.size() && k < 2; ++k) {
-      text += (text.empty() ? "" : ", ") + Format("%.0f-%.0f Hz", summary.worst_bands[k].band.low_hz, summary.worst_bands[k].band.high_hz) +
-              Format(" (%.0f %%)", 100 * summary.worst_bands[k].share);
-    }
-    std::string elements;
-    for (size_t k = 0; k < summary.worst_elements.size() && k < 3; ++k) {
-      elements += (elements.empty() ? "" : ", ") + summary.worst_elements[k].name + Format(" (%.0f %%)", 100 * summary.worst_elements[k].share);
-    }
-    if (!elements.empty()) text += (text.empty() ? "" : "; elements ") + elements;
-    return text;
-  };
+  auto where_words = [&] { return WhereWords(summary.worst_bands, summary.worst_elements); };
   std::ostringstream verdict;
   if (summary.effect_found) {
     const Candidate& best = summary.candidates[0];

@@ -95,26 +95,15 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
     return std::string(line) + (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
                                                 : " with " + effects + ": they explain the measurement.");
   }
-  const compare::ComparisonResult result = comparison.Evaluate(final);
-  auto bands = result.bands;
-  std::sort(bands.begin(), bands.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
-  auto elements = result.elements;
-  std::sort(elements.begin(), elements.end(), [](const auto& a, const auto& b) { return a.share > b.share; });
-  std::string where;
-  for (size_t k = 0; k < bands.size() && k < 2; ++k) {
-    std::snprintf(line, sizeof line, "%s%.0f-%.0f Hz (%.0f %%)", k ? ", " : "", bands[k].band.low_hz, bands[k].band.high_hz, 100 * bands[k].share);
-    where += line;
-  }
-  for (size_t k = 0; k < elements.size() && k < 3; ++k) {
-    std::snprintf(line, sizeof line, "%s%s (%.0f %%)", k ? ", " : "; elements ", elements[k].name.c_str(), 100 * elements[k].share);
-    where += line;
-  }
+  std::vector<compare::BandError> bands;
+  std::vector<compare::ElementError> elements;
+  SortWorst(comparison.Evaluate(final), 2, 3, &bands, &elements);
   const bool round_limit = summary.stop_reason == "the round limit";
   std::snprintf(line, sizeof line, "Not explained: the model ends at %.2f x the noise floor %.4f (stopped: %s). %s; its error is in ",
                 times, summary.noise_floor.floor, summary.stop_reason.c_str(),
                 round_limit ? "Something is still missing (more rounds, --max-rounds, may find it in the catalogue)"
                             : "Something outside the catalogue is still missing");
-  std::string text = line + where + ".";
+  std::string text = line + WhereWords(bands, elements) + ".";
   if (!effects.empty()) {
     text += " The effects added on the way (" + effects +
             ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed.";
@@ -231,7 +220,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.stop_reason = "at the noise floor";
   }
   if (options.turned_channel_deg > 0) AddTurnedChannel(measurement, comparison, options, &current, &summary);
-  summary.confirmed = floor.known && floor.floor > 0 && at_floor(summary.history.back().error);
+  summary.confirmed = at_floor(summary.history.back().error);  // false when the floor is unknown (NaN)
   summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;

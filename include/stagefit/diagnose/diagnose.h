@@ -128,6 +128,15 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
 /// not estimable or the two directions are parallel.
 std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirectionEstimate& estimate);
 
+/// The bands and elements of `result`, largest share first, at most `max_bands` and `max_elements`.
+void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t max_elements,
+               std::vector<compare::BandError>* bands, std::vector<compare::ElementError>* elements);
+
+/// Where an error is, in words, from bands and elements sorted worst first (SortWorst()): the first two
+/// bands and three elements with their shares, "a-b Hz (s %), ...; elements O/I (s %), ...". The
+/// verdicts and the loop's conclusion say it so.
+std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements);
+
 /// The verdict's thresholds against the noise floor (compare::Comparison::CalcNoiseFloor()): at most
 /// this many times the floor is done; above the second, with no candidate that helps or with the best
 /// one still above it, something outside the catalogue is missing.
