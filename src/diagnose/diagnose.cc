@@ -560,8 +560,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   };
   // Fits every effect of `list` with the model's parameters against `on`, each from its start (the
   // baseline's parameters where it names none).
+  // The screening holds the parameters of the effects already in the model where the baseline fitted
+  // them (DiagnoseOptions::refit_effects frees them from the refinement on): their columns are
+  // differenced, and with a joint offset in the model a second round's screening took twice the first's.
+  const std::vector<std::string>& screening_params = options.hold_effects_in_screening ? options.params : params;
   auto run = [&](const std::vector<Try>& list, int iterations, bool refined, bool probe_basins,
                  const compare::Comparison& on, const Scale& scale, double trust_region_radius = EffectFitOptions{}.initial_trust_region_radius) {
+    const std::vector<std::string>& fitted = refined ? params : screening_params;
     std::vector<Candidate> out(list.size());
     std::vector<char> ok(list.size(), 0);  // not vector<bool>: its elements share words, written from several threads
     for_each_candidate(list.size(), [&](size_t i) {
@@ -581,7 +586,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         fit_options.initial_trust_region_radius = list[i].effect.name == "sensor-geometry" || list[i].short_steps
                                                       ? std::min(trust_region_radius, kPolishTrustRegionRadius)
                                                       : trust_region_radius;
-        EffectFit f = FitEffect(base, on, list[i].effect, params, fit_options);
+        EffectFit f = FitEffect(base, on, list[i].effect, fitted, fit_options);
         if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) return;
         out[i].held_parameters = list[i].held;
         score(f, &out[i], refined, scale);

@@ -169,8 +169,17 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
     summary.last_verdict = diagnosis.verdict;
     summary.last_diagnosis = diagnosis;
+    // The diagnosis refits the model without any new effect from its leader's parameters and from the
+    // model as given (its step 3); a lower error there is a better model than the one the loop holds
+    // (seed 5011: 0.0542 -> 0.0422, 1.04x the floor, and then no effect was needed). Taken when it lowers
+    // the error by more than 1 %: below that it is the same model, refitted a few iterations further.
+    if (const double e = comparison.Error(diagnosis.baseline); e < 0.99 * summary.history.back().error) {
+      current = diagnosis.baseline;
+      summary.history.push_back({"refit (the diagnosis' baseline)", "", e});
+      say("refit (the diagnosis' baseline): error " + std::to_string(e));
+    }
     if (!diagnosis.effect_found) {
-      summary.stop_reason = "no effect of the catalogue helps";
+      summary.stop_reason = at_floor(summary.history.back().error) ? "at the noise floor" : "no effect of the catalogue helps";
       break;
     }
     const Candidate& best = diagnosis.candidates[0];

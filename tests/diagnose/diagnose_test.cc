@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "stagefit/compare/residuals.h"
+#include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/model/model_spec.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
@@ -135,6 +136,43 @@ TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   EXPECT_NEAR(thinned.candidates[0].error_after, full.candidates[0].error_after, 0.02 * full.candidates[0].error_after);
   EXPECT_NEAR(thinned.candidates[0].effect.parameters.at("tau"), full.candidates[0].effect.parameters.at("tau"),
               0.01 * full.candidates[0].effect.parameters.at("tau"));
+}
+
+// The effects already in the model are fitted again with every candidate from the refinement on
+// (DiagnoseOptions::refit_effects), but held where the baseline fitted them in the screening
+// (DiagnoseOptions::hold_effects_in_screening): a candidate only screened carries no fitted value of
+// them, a refined one does; with the option off, every candidate does.
+TEST(Diagnose, HoldsTheModelsEffectsInTheScreeningAndFitsThemFromTheRefinementOn) {
+  model::ModelSpec with_payload = model::DefaultModelSpec();
+  model::ApplyEffect(with_payload, model::ParseEffect("payload@hexapod:mass=2 kg,z=50 mm", with_payload));
+  synthetic::HiddenEffectOptions hidden;
+  hidden.num_effects = 0;
+  hidden.num_frequencies = 150;
+  const auto c = synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), 7, hidden);
+  DiagnoseOptions options;
+  options.effects = {"delay", "structural-damping"};
+  options.num_refined = 1;
+  options.num_second_starts = 0;
+  options.num_polished = 0;
+  options.refit_starts = 1;
+  const std::string mass = "payload@hexapod.mass";
+  for (const bool hold : {true, false}) {
+    options.hold_effects_in_screening = hold;
+    const DiagnoseSummary summary = Diagnose(with_payload, c.measurement, options);
+    int screened = 0, refined = 0;
+    for (const Candidate& candidate : summary.candidates) {
+      const bool fitted = candidate.model_parameters.count(mass) > 0;
+      if (candidate.refined) {
+        ++refined;
+        EXPECT_TRUE(fitted) << candidate.with;
+      } else {
+        ++screened;
+        EXPECT_EQ(fitted, !hold) << candidate.with << (hold ? " (held)" : " (free)");
+      }
+    }
+    EXPECT_EQ(refined, 1);
+    EXPECT_GT(screened, 0);
+  }
 }
 
 // An extra body whose mass the baseline's stiffnesses have absorbed (softened hexapod joint): added to

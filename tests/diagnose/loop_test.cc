@@ -134,6 +134,37 @@ TEST(Loop, AddsNothingToEffectFreeData) {
   EXPECT_NE(summary.conclusion.find("its parameters alone explain the measurement"), std::string::npos) << summary.conclusion;
 }
 
+// The diagnosis fits the model again before it tries any effect (its baseline, and its step 3 from the
+// leader's parameters and from the model as given); when that model is better than the one the loop
+// holds, the loop takes it. Here the loop's own first fit is cut to one iteration, so that it stops
+// short of the floor on effect-free data; the diagnosis' baseline fit (50 iterations) reaches it, no
+// effect is needed, and the loop ends there with the diagnosis' model.
+TEST(Loop, TakesTheDiagnosisBaselineWhenItIsBetter) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions hidden;
+  hidden.num_effects = 0;
+  hidden.num_frequencies = 300;
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 7, hidden);
+  LoopOptions options = Options({"delay"});
+  options.fit.max_iterations = 1;
+  options.fit.max_probe_rounds = 0;
+  options.max_rounds = 1;
+  options.turned_channel_deg = 0;
+  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
+  std::cout << summary.HistoryTable();
+  ASSERT_TRUE(summary.noise_floor.known);
+  ASSERT_GE(summary.history.size(), 3u);
+  ASSERT_EQ(summary.history[1].action, "fit");
+  ASSERT_GT(summary.history[1].error, kDoneTimesFloor * summary.noise_floor.floor);  // the cut fit stops short
+  EXPECT_EQ(summary.history[2].action, "refit (the diagnosis' baseline)");
+  EXPECT_LT(summary.history[2].error, 0.99 * summary.history[1].error);
+  EXPECT_TRUE(summary.effects_added.empty());
+  EXPECT_EQ(summary.stop_reason, "at the noise floor");
+  EXPECT_TRUE(summary.confirmed);
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  EXPECT_EQ(comparison.Error(summary.final_model), summary.history.back().error);
+}
+
 // A cable between the granite and the hexapod (outside the catalogue; eval_loop's seed 5023): a loss
 // factor in the hexapod lowers the error, but the model stays clearly above the floor, so the loop
 // does not confirm it and says where the error is. (Only loss factors are tried, in one round, for time;

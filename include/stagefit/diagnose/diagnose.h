@@ -52,6 +52,9 @@ struct DiagnoseOptions {
   /// candidate (model::WithEffectParameters): a second effect is then judged with the first one's
   /// parameters free, as the refit that adds it will hold them.
   bool refit_effects = true;
+  /// ... except in the screening, which holds them where the baseline fitted them (their Jacobian
+  /// columns are differenced: a joint offset in the model doubled a second round's screening).
+  bool hold_effects_in_screening = true;
   /// Effects to try (catalogue names); empty = the whole catalogue.
   std::vector<std::string> effects;
   int screening_iterations = 4;   ///< iterations of the short fit of every candidate
