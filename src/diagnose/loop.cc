@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <set>
 #include <sstream>
 
 #include "stagefit/common/error.h"
@@ -22,6 +23,21 @@ double Now() {
 
 double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// The model as given (its base) with `effects`, all their parameters fitted together with the model's
+/// (diagnose::FitEffects); nullopt when the fit fails.
+std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                         const std::vector<model::Effect>& effects, const LoopOptions& options) {
+  EffectFitOptions eo;
+  eo.max_iterations = options.fit.max_iterations;
+  eo.probe_basins = true;
+  eo.initial_trust_region_radius = 1.0;
+  try {
+    return FitEffects(model::BaseOf(as_given), comparison, effects, options.diagnose.params, eo);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
 }
 
 /// The turned-channel step of LoopOptions::turned_channel_deg on `current`.
@@ -77,6 +93,13 @@ void AddTurnedChannel(const measurement::FrfData& measurement,
   *current = with;
 }
 
+/// The --with texts of `effects`, separated by spaces.
+std::string EffectsText(const std::vector<model::Effect>& effects) {
+  std::string text;
+  for (const auto& e : effects) text += (text.empty() ? "" : " ") + e.ToString();
+  return text;
+}
+
 /// LoopSummary::conclusion of `summary` (its history, floor and effects set), `final` evaluated by
 /// `comparison` for where the remaining error sits.
 std::string Conclusion(const LoopSummary& summary, const compare::Comparison& comparison, const model::ModelSpec& final) {
@@ -112,6 +135,52 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
 }
 
 }  // namespace
+
+std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                             const LoopOptions& options, const model::Effect& newest,
+                                             model::ModelSpec* current, std::vector<LoopStep>* history) {
+  std::vector<std::string> dropped;
+  const double n = comparison.num_residuals();
+  const size_t first = as_given.effects.size();  // the effects of the model as given are the user's
+  for (size_t k = first; k < current->effects.size() && current->effects.size() > first + 1;) {
+    const model::Effect effect = current->effects[k];
+    if (effect.name == newest.name && effect.location == newest.location) {
+      ++k;
+      continue;
+    }
+    std::vector<model::Effect> without = current->effects;
+    without.erase(without.begin() + static_cast<long>(k));
+    // Refitted without it from two starts, the better kept: the loop's state, and the model as given.
+    model::ModelSpec trial = *current;
+    double trial_error = std::numeric_limits<double>::infinity();
+    try {
+      model::SetEffects(trial, without);
+      fit::FitModel(trial, comparison, model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)),
+                    options.fit);
+      trial_error = comparison.Error(trial);
+    } catch (const std::exception&) {
+    }
+    if (auto restart = FitFromAsGiven(as_given, comparison, without, options)) {
+      if (const double e = comparison.Error(restart->spec); e < trial_error) {
+        trial = restart->spec;
+        trial_error = e;
+      }
+    }
+    const double with_error = history->back().error;
+    const int num_parameters = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size());
+    const double delta_bic = n * std::log(std::pow(with_error / trial_error, 2)) + num_parameters * std::log(n);
+    const bool earns = delta_bic < 0 && with_error < (1 - options.diagnose.min_relative_improvement) * trial_error;
+    if (earns || !std::isfinite(trial_error)) {
+      ++k;
+      continue;
+    }
+    const std::string key = effect.name + "@" + effect.location;
+    history->push_back({"drop " + key + " (not needed)", "", trial_error});
+    dropped.push_back(key);
+    *current = trial;
+  }
+  return dropped;
+}
 
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options) {
   const double start = Now();
@@ -159,6 +228,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   if (d.as_given.empty()) {
     for (const auto& p : model::ListParameters(spec)) d.as_given[p.name] = model::GetParameter(spec, p);
   }
+  // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
+  std::set<std::string> dropped;
   summary.stop_reason = "the round limit";
   for (int round = 0; round < options.max_rounds; ++round) {
     if (at_floor(summary.history.back().error)) {
@@ -183,6 +254,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       break;
     }
     const Candidate& best = diagnosis.candidates[0];
+    if (dropped.count(best.effect.name + "@" + best.effect.location)) {
+      summary.stop_reason = "the best effect was dropped before as not needed";
+      break;
+    }
     // The candidate's whole fitted state: its effect, the effects already in the model and the model's
     // parameters as the diagnosis fitted them together.
     model::ModelSpec with = ApplyCandidate(diagnosis, best);
@@ -197,33 +272,26 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
     // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
     // in that basin (1.9x the floor), from (b) it reaches the floor.
-    EffectFitOptions eo;
-    eo.max_iterations = options.fit.max_iterations;
-    eo.probe_basins = true;
-    eo.initial_trust_region_radius = 1.0;
     std::vector<model::Effect> all = added;
     all.push_back(best.effect);
-    std::optional<EffectsFit> restart;
-    double restart_error = std::numeric_limits<double>::infinity();
-    try {
-      restart = FitEffects(model::BaseOf(spec), comparison, all, options.diagnose.params, eo);
-      restart_error = comparison.Error(restart->spec);
-    } catch (const std::exception&) {
-      restart.reset();
-    }
+    std::optional<EffectsFit> restart = FitFromAsGiven(spec, comparison, all, options);
+    const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
     refit(&with, "refit");  // the model's and every effect's parameters
     added = with.effects;
     if (restart && restart_error < summary.history.back().error) {
-      std::string text;
-      for (const auto& e : restart->effects) text += (text.empty() ? "" : " ") + e.ToString();
-      summary.history.back() = {"refit (effects and model from the model as given)", text, restart_error};
+      summary.history.back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};
       with = restart->spec;
       added = restart->effects;
       say("refit from the model as given: error " + std::to_string(restart_error));
     }
-    summary.effects_added.clear();
-    for (const auto& e : with.effects) summary.effects_added.push_back(e.ToString());
     current = with;
+    for (const std::string& key : DropUnneededEffects(spec, comparison, options, best.effect, &current, &summary.history)) {
+      dropped.insert(key);
+      say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
+    }
+    added = current.effects;
+    summary.effects_added.clear();
+    for (const auto& e : current.effects) summary.effects_added.push_back(e.ToString());
   }
   if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {
     summary.stop_reason = "at the noise floor";

@@ -80,6 +80,19 @@ struct LoopSummary {
 /// Runs the loop on `spec` against `measurement`. Throws as diagnose::Diagnose() does.
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options = {});
 
+/// The loop's check after each round that adds an effect: every effect the loop added before `newest`
+/// (those of `current` after the effects of `as_given`) must still earn its place beside the later ones
+/// by the rule that added it (DiagnoseOptions::min_relative_improvement and delta BIC against the model
+/// without it). The model is refitted without it from `current`'s state and from the model as given
+/// (every remaining effect refitted with the model, FitEffects), the better kept; where the effect does
+/// not lower the error by that share it is dropped: `current` becomes the model without it and a
+/// "drop" step with its error is appended to `history` (whose last step holds `current`'s error).
+/// A first round names what mimics the strongest effect best, a later one can name the truth beside it
+/// (docs/diagnose.md). Returns the "<effect>@<location>" of the dropped effects.
+std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                             const LoopOptions& options, const model::Effect& newest,
+                                             model::ModelSpec* current, std::vector<LoopStep>* history);
+
 /// `step,action,effect,error,noise_floor,times_floor` (header first; empty noise fields when the
 /// floor is unknown), one row per step.
 std::string FormatLoopHistory(const LoopSummary& summary);
