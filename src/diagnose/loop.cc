@@ -193,6 +193,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   summary.noise_floor = comparison.CalcNoiseFloor();
   const compare::NoiseFloor& floor = summary.noise_floor;
   auto at_floor = [&](double error) { return TimesFloor(error, floor) <= kDoneTimesFloor; };
+  auto done = [&](double error) { return TimesFloor(error, floor) <= options.rounds_above_times_floor; };
 
   model::ModelSpec current = spec;
   summary.history.push_back({"as given", "", comparison.Error(current)});
@@ -232,7 +233,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   std::set<std::string> dropped;
   summary.stop_reason = "the round limit";
   for (int round = 0; round < options.max_rounds; ++round) {
-    if (at_floor(summary.history.back().error)) {
+    if (done(summary.history.back().error)) {
       summary.stop_reason = "at the noise floor";
       break;
     }

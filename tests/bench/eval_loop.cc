@@ -62,6 +62,16 @@ synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
   return options;
 }
 
+// The last diagnosis' leading candidates: what the loop chose from, or why it stopped.
+void PrintLeaders(const diagnose::DiagnoseSummary& last) {
+  for (size_t k = 0; k < last.candidates.size() && k < 4; ++k) {
+    const diagnose::Candidate& c = last.candidates[k];
+    std::printf("    last diagnosis #%zu: %-40s error %.4f  delta BIC %.0f  %s%s\n", k + 1,
+                (c.effect.name + "@" + c.effect.location).c_str(), c.error_after, c.delta_bic, c.helps ? "helps " : "",
+                c.implausible.empty() ? "" : ("(implausible: " + c.implausible + ")").c_str());
+  }
+}
+
 Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, bool verbose) {
   const synthetic::HiddenEffectOptions options = DrawOptions(seed, num_effects);
   const auto hidden = synthetic::MakeHiddenEffectCase(nominal, seed, options);
@@ -100,7 +110,10 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
               summary.history.back().error, summary.history.back().error / floor, floor, distance,
               o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "",
               summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", summary.time_s);
-  if (verbose) std::printf("%s", summary.HistoryTable().c_str());
+  if (verbose) {
+    std::printf("%s", summary.HistoryTable().c_str());
+    PrintLeaders(summary.last_diagnosis);
+  }
   std::fflush(stdout);
   return o;
 }

@@ -31,6 +31,12 @@ struct LoopOptions {
   /// The fits of the model's parameters: the first one, and the refit after each added effect.
   fit::FitOptions fit;
   int max_rounds = 4;  ///< effects added at most
+  /// A round runs while the error is above this many times the noise floor; the model is confirmed
+  /// within kDoneTimesFloor (1.2x). A correct model's error lies within 1.05x of the floor (its
+  /// standard deviation is about 1 % of it), so 1.16x is a dozen standard deviations above: a servo
+  /// stiffness of ry.Ry absorbed by the stiffnesses at 1.16x the floor was 0.022 off the noise-free
+  /// truth, and found at 1.02x when a round ran.
+  double rounds_above_times_floor = 1.1;
   /// The turned-channel step, after the rounds: a channel whose direction, as the other channels'
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
