@@ -54,7 +54,7 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--params", o->params, "model parameters fitted in every step (comma-separated patterns)")
       ->capture_default_str();
   command->add_option("--effects", o->effects, "only these catalogue effects (comma-separated); default all");
-  command->add_option("--max-rounds", o->max_rounds, "effects added at most (default 4)")->check(CLI::PositiveNumber);
+  command->add_option("--max-rounds", o->max_rounds, "rounds of diagnosis at most, each adding one effect at most (default 4)")->check(CLI::PositiveNumber);
   command->add_option("--fmin", o->fmin, "lower end of the band, Hz");
   command->add_option("--fmax", o->fmax, "upper end of the band, Hz");
   command->callback([o] {

@@ -82,7 +82,12 @@ void AddTurnedChannel(const measurement::FrfData& measurement,
     return;
   }
   const double before = summary->history.back().error, after = comparison.Error(with);
-  if (!(after <= 1.05 * before)) return;
+  // Kept only when the data support it: the error does not rise. A measurement re-projected under the
+  // correction is weighed with its own projection's noise (docs/error-metric.md), so the errors with
+  // and without it compare; on the turned channels of the evaluation the correction lowered the error
+  // (0.3 %), on sound ones it raised it (0.4 % for h3 beside a hexapod coupling, 1.3 % for h1 beside three
+  // effects), and both were kept under the earlier 5 % allowance.
+  if (!(after <= before)) return;
   char action[160];
   std::snprintf(action, sizeof action, "channel %s turned %.1f deg (its rigid-body direction), refit", turned->name.c_str(),
                 turned->angle_rad * 180 / M_PI);
@@ -245,12 +250,19 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     // model as given (its step 3); a lower error there is a better model than the one the loop holds
     // (seed 5011: 0.0542 -> 0.0422, 1.04x the floor, and then no effect was needed). Taken when it lowers
     // the error by more than 1 %: below that it is the same model, refitted a few iterations further.
+    bool baseline_taken = false;
     if (const double e = comparison.Error(diagnosis.baseline); e < 0.99 * summary.history.back().error) {
       current = diagnosis.baseline;
       summary.history.push_back({"refit (the diagnosis' baseline)", "", e});
       say("refit (the diagnosis' baseline): error " + std::to_string(e));
+      baseline_taken = true;
     }
     if (!diagnosis.effect_found) {
+      // The candidates were fitted from the round's first baseline; one that found no effect against
+      // the better model found after them is tried again from that model, in the next round (seed
+      // 11002: a payload on rz, the first fit at 1.55x, the diagnosis' baseline at 1.22x where every
+      // candidate, fitted from the 1.55x one, stayed above it).
+      if (baseline_taken && !done(summary.history.back().error) && round + 1 < options.max_rounds) continue;
       summary.stop_reason = at_floor(summary.history.back().error) ? "at the noise floor" : "no effect of the catalogue helps";
       break;
     }

@@ -30,7 +30,7 @@ struct LoopOptions {
   DiagnoseOptions diagnose;
   /// The fits of the model's parameters: the first one, and the refit after each added effect.
   fit::FitOptions fit;
-  int max_rounds = 4;  ///< effects added at most
+  int max_rounds = 4;  ///< rounds of diagnosis at most, each adding one effect at most
   /// A round runs while the error is above this many times the noise floor; the model is confirmed
   /// within kDoneTimesFloor (1.2x). A correct model's error lies within 1.05x of the floor (its
   /// standard deviation is about 1 % of it), so 1.16x is a dozen standard deviations above: a servo
@@ -41,7 +41,7 @@ struct LoopOptions {
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
   /// estimate leaves the least residual, is added as a sensor-geometry correction held at that turn,
-  /// and the model refitted; kept unless the error rises by more than 5 %. In compliance space a turned
+  /// and the model refitted; kept only when the error does not rise. In compliance space a turned
   /// accelerometer is often absorbed by the stiffnesses at the noise floor (15 degrees: 1.03x the floor,
   /// 2.8 % off the noise-free truth), while its direction estimate stands out (15.3 degrees; sound
   /// channels of six effect-free cases at most 0.8). 0: no such step.
