@@ -58,16 +58,29 @@ TEST(Loop, AddsTheHiddenEffectAndStopsAtTheFloor) {
   EXPECT_EQ(FormatLoopHistory(summary).rfind("step,action,effect,error,noise_floor,times_floor\n", 0), 0u);
 }
 
-// A single-effect case of tests/bench/eval_loop (5-600 Hz, `num_frequencies`, the seed's own noise and
-// scatter) whose hidden effect is `effect` ("<name>@<location>").
-void MakeEvalLoopCase(uint64_t seed, int num_frequencies, const std::string& effect, synthetic::HiddenEffectCase* c) {
+// A single-effect case of tests/bench/eval_loop (5 Hz to `fmax_hz`, `num_frequencies`, the seed's own
+// noise and scatter) whose hidden effect is `effect` ("<name>@<location>").
+void MakeEvalLoopCase(uint64_t seed, int num_frequencies, const std::string& effect, synthetic::HiddenEffectCase* c,
+                      double fmax_hz = 600) {
   synthetic::HiddenEffectOptions o;
   o.fmin_hz = 5;
-  o.fmax_hz = 600;
+  o.fmax_hz = fmax_hz;
   o.num_frequencies = num_frequencies;
+  o.noise_min = 0.01;
+  o.noise_max = 0.03;
   *c = synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), seed, o);
   ASSERT_EQ(c->effects.size(), 1u);
   ASSERT_EQ(c->effects[0].name + "@" + c->effects[0].location, effect);
+}
+
+// The distance of `model` to the case's noise-free truth as eval_loop measures it: the error scalar of
+// ln(H_model / H_truth) on the measurement's points and weights.
+double DistanceToTruth(const model::ModelSpec& model, const synthetic::HiddenEffectCase& c) {
+  const auto comparison = compare::Comparison::Create(model::DefaultModelSpec(), c.measurement);
+  Eigen::VectorXd r, r_truth;
+  comparison.Residuals(model, &r);
+  comparison.Residuals(c.truth, &r_truth);
+  return (r - r_truth).norm();
 }
 
 // A coupling in the hexapod (seed 5008 of eval_loop: correlation -0.56, 600 Hz, 838 frequencies) that
@@ -112,11 +125,7 @@ TEST(Loop, AddsATurnedChannelTheStiffnessesAbsorbed) {
   EXPECT_LE(summary.history.back().error, kDoneTimesFloor * summary.noise_floor.floor);
   const double rz = summary.final_model.effects.back().parameters.at("rz");
   EXPECT_NEAR(std::abs(rz) * 180 / M_PI, 16.0, 1.0);
-  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  Eigen::VectorXd r_final, r_truth;
-  comparison.Residuals(summary.final_model, &r_final);
-  comparison.Residuals(c.truth, &r_truth);
-  EXPECT_LT((r_final - r_truth).norm(), 0.005);
+  EXPECT_LT(DistanceToTruth(summary.final_model, c), 0.005);
 }
 
 // Effect-free data (stiffness scatter and noise only, seed 7 as in diagnose_test): the first fit reaches
@@ -245,24 +254,8 @@ TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
 // tried, for time.)
 TEST(Loop, RunsARoundBetweenTheRoundAndTheConfirmationThresholds) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions o;
-  o.fmin_hz = 5.0;
-  o.fmax_hz = 150.0;
-  o.num_frequencies = 820;
-  o.noise_min = 0.01;
-  o.noise_max = 0.03;
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 9006, o);
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "servo-stiffness@ry.Ry");
-  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  Eigen::VectorXd r_truth;
-  comparison.Residuals(c.truth, &r_truth);
-  auto to_truth = [&](const model::ModelSpec& m) {
-    Eigen::VectorXd r;
-    comparison.Residuals(m, &r);
-    return (r - r_truth).norm();
-  };
-
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(9006, 820, "servo-stiffness@ry.Ry", &c, 150));
   LoopOptions options = Options({"servo-stiffness", "structural-damping"});
   options.max_rounds = 1;
   options.turned_channel_deg = 0;
@@ -274,7 +267,7 @@ TEST(Loop, RunsARoundBetweenTheRoundAndTheConfirmationThresholds) {
   const double fit_times_floor = stopped.history.back().error / stopped.noise_floor.floor;
   ASSERT_GT(fit_times_floor, 1.1);
   ASSERT_LE(fit_times_floor, kDoneTimesFloor);
-  EXPECT_GT(to_truth(stopped.final_model), 0.015);
+  EXPECT_GT(DistanceToTruth(stopped.final_model, c), 0.015);
 
   options.rounds_above_times_floor = LoopOptions{}.rounds_above_times_floor;
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
@@ -283,9 +276,8 @@ TEST(Loop, RunsARoundBetweenTheRoundAndTheConfirmationThresholds) {
   EXPECT_EQ(summary.effects_added[0].rfind("servo-stiffness@ry.Ry:", 0), 0u) << summary.effects_added[0];
   EXPECT_TRUE(summary.confirmed);
   EXPECT_LE(summary.history.back().error, 1.05 * summary.noise_floor.floor);
-  EXPECT_LE(to_truth(summary.final_model), 0.01);
+  EXPECT_LE(DistanceToTruth(summary.final_model, c), 0.01);
 }
-
 
 // A round whose candidates find no effect against the better model the diagnosis found without one
 // (its baseline refitted from the leaders' parameters) is followed by a round from that model: seed
@@ -295,15 +287,8 @@ TEST(Loop, RunsARoundBetweenTheRoundAndTheConfirmationThresholds) {
 // (Payloads and extra bodies tried, for time.)
 TEST(Loop, TriesTheCandidatesAgainFromTheDiagnosisBaseline) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions o;
-  o.fmin_hz = 5.0;
-  o.fmax_hz = 150.0;
-  o.num_frequencies = 395;
-  o.noise_min = 0.01;
-  o.noise_max = 0.03;
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 11002, o);
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "payload@rz");
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(11002, 395, "payload@rz", &c, 150));
   LoopOptions options = Options({"payload", "extra-body"});
   options.turned_channel_deg = 0;
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
@@ -315,11 +300,7 @@ TEST(Loop, TriesTheCandidatesAgainFromTheDiagnosisBaseline) {
   ASSERT_EQ(summary.effects_added.size(), 1u);
   EXPECT_EQ(summary.effects_added[0].rfind("payload@rz:", 0), 0u) << summary.effects_added[0];
   EXPECT_TRUE(summary.confirmed);
-  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  Eigen::VectorXd r_final, r_truth;
-  comparison.Residuals(summary.final_model, &r_final);
-  comparison.Residuals(c.truth, &r_truth);
-  EXPECT_LE((r_final - r_truth).norm(), 0.01);
+  EXPECT_LE(DistanceToTruth(summary.final_model, c), 0.01);
 }
 
 }  // namespace
