@@ -245,7 +245,6 @@ TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
   EXPECT_EQ(summary.final_model.history.back().step, "loop: effects not confirmed (the model is not at the noise floor)");
 }
 
-
 // Between 1.1x and 1.2x the noise floor a round still runs (LoopOptions::rounds_above_times_floor):
 // seed 9006 of eval_loop (a servo stiffness of ry.Ry, 5-150 Hz, 820 frequencies) is absorbed by the
 // first stiffness fit at 1.16x the floor, 0.022 off the noise-free truth; the round adds the servo
@@ -265,7 +264,7 @@ TEST(Loop, RunsARoundBetweenTheRoundAndTheConfirmationThresholds) {
   ASSERT_TRUE(stopped.noise_floor.known);
   ASSERT_EQ(stopped.history.size(), 2u);  // as given, fit
   const double fit_times_floor = stopped.history.back().error / stopped.noise_floor.floor;
-  ASSERT_GT(fit_times_floor, 1.1);
+  ASSERT_GT(fit_times_floor, LoopOptions{}.rounds_above_times_floor);
   ASSERT_LE(fit_times_floor, kDoneTimesFloor);
   EXPECT_GT(DistanceToTruth(stopped.final_model, c), 0.015);
 
@@ -296,7 +295,7 @@ TEST(Loop, TriesTheCandidatesAgainFromTheDiagnosisBaseline) {
   ASSERT_TRUE(summary.noise_floor.known);
   ASSERT_GE(summary.history.size(), 4u);
   EXPECT_EQ(summary.history[2].action, "refit (the diagnosis' baseline)");
-  EXPECT_GT(summary.history[2].error, 1.1 * summary.noise_floor.floor);
+  EXPECT_GT(summary.history[2].error, options.rounds_above_times_floor * summary.noise_floor.floor);
   ASSERT_EQ(summary.effects_added.size(), 1u);
   EXPECT_EQ(summary.effects_added[0].rfind("payload@rz:", 0), 0u) << summary.effects_added[0];
   EXPECT_TRUE(summary.confirmed);

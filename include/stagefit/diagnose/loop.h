@@ -35,7 +35,7 @@ struct LoopOptions {
   /// within kDoneTimesFloor (1.2x). A correct model's error lies within 1.05x of the floor (its
   /// standard deviation is about 1 % of it), so 1.16x is a dozen standard deviations above: a servo
   /// stiffness of ry.Ry absorbed by the stiffnesses at 1.16x the floor was 0.022 off the noise-free
-  /// truth, and found at 1.02x when a round ran.
+  /// truth, and found at 1.01x when a round ran.
   double rounds_above_times_floor = 1.1;
   /// The turned-channel step, after the rounds: a channel whose direction, as the other channels'
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
