@@ -215,14 +215,16 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
   nominal.parameters = model::DefaultEffectParameters(baseline, effect.name, effect.location);
   const std::vector<fit::ParameterSpec> specs = EffectParameterSpecs(baseline, nominal, {}, nullptr);
   for (size_t k = 0; k < def.parameters.size() && k < specs.size(); ++k) {
-    if (def.parameters[k].dimension != dim::kLength) continue;
+    const bool length = def.parameters[k].dimension == dim::kLength;
+    if (!length && def.parameters[k].dimension != dim::kAngle) continue;
     const fit::ParameterSpec& b = specs[k];
     const double value = effect.parameters.at(def.parameters[k].name);
     if (!std::isfinite(b.upper - b.lower)) continue;
     const double margin = 0.01 * (b.upper - b.lower);
     if (value <= b.lower + margin || value >= b.upper - margin) {
-      return FormatText("%s = %.4g m is at the bound of its search range [%.3g, %.3g] m", def.parameters[k].name.c_str(), value,
-                    b.lower, b.upper);
+      const char* unit = length ? "m" : "rad";
+      return FormatText("%s = %.4g %s is at the bound of its search range [%.3g, %.3g] %s", def.parameters[k].name.c_str(),
+                        value, unit, b.lower, b.upper, unit);
     }
   }
   return {};

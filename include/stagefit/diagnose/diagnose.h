@@ -118,9 +118,10 @@ struct Candidate {
 };
 
 /// Why a fitted effect is physically absurd, or empty: a payload or extra body heavier than the whole
-/// stack (the sum of `baseline`'s body masses), or a length parameter (a joint's stiffness centre, a
-/// payload's CoM offset, a sensor's position) within 1 % of the bound of its search range, where a fit
-/// stops because it cannot go further; or a body on a joint (extra-body) whose local mode sqrt(k/mass)
+/// stack (the sum of `baseline`'s body masses), or a length or angle parameter (a joint's stiffness
+/// centre, a payload's CoM offset, a sensor's position or turn) within 1 % of the bound of its search
+/// range, where a fit stops because it cannot go further (an extra body on the hexapod was taken for a
+/// channel turned 34 degrees, its rx at the 0.6 rad bound, 12x the noise floor); or a body on a joint (extra-body) whose local mode sqrt(k/mass)
 /// lies below `band_low_hz`, the lowest compared frequency (0: not checked): in the band such a body
 /// stands still, so its fitted mass is not determined and its joint acts as a spring to the ground (a
 /// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz).
