@@ -15,7 +15,10 @@
 // changes most.
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
-//                  [--first-seed S] [--space compliance|raw] [--verbose 1]
+//                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
+//                  [--verbose 1|2]
+//   --verbose 2 also prints the last diagnosis' best candidate of every effect and location (16 at most);
+//   --effects a,b tries only these effects of the catalogue.
 //   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them, then
 //   three-effect cases, then out-of-catalogue cases.
 
@@ -41,6 +44,10 @@ using namespace stagefit;
 
 // The comparison space of every loop (--space; default compliance, as `stagefit loop` on a top-plate test).
 compare::ComparisonSpace g_space = compare::ComparisonSpace::kCompliance;
+// Rounds of diagnosis at most (--max-rounds; default LoopOptions').
+int g_max_rounds = diagnose::LoopOptions{}.max_rounds;
+// Effects tried (--effects a,b; empty: the whole catalogue).
+std::vector<std::string> g_effects;
 
 struct Outcome {
   bool named_all = false;    // every hidden effect added (name and location)
@@ -72,11 +79,13 @@ void PrintLeaders(const diagnose::DiagnoseSummary& last) {
   }
 }
 
-Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, bool verbose) {
+Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, int verbose) {
   const synthetic::HiddenEffectOptions options = DrawOptions(seed, num_effects);
   const auto hidden = synthetic::MakeHiddenEffectCase(nominal, seed, options);
   diagnose::LoopOptions loop_options;
   loop_options.diagnose.comparison.space = g_space;
+  loop_options.max_rounds = g_max_rounds;
+  loop_options.diagnose.effects = g_effects;
   if (verbose) loop_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
   const diagnose::LoopSummary summary = diagnose::RunLoop(nominal, hidden.measurement, loop_options);
 
@@ -111,8 +120,18 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
               o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "",
               summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", summary.time_s);
   if (verbose) {
+    for (const auto& e : hidden.effects) std::printf("    hidden: %s (visibility %.1f)\n", e.description.c_str(), e.visibility);
     std::printf("%s", summary.HistoryTable().c_str());
     PrintLeaders(summary.last_diagnosis);
+    if (verbose > 1) {
+      // The best candidate of every effect and location (first in the ranking), with its fitted values.
+      std::set<std::string> seen;
+      for (const auto& c : summary.last_diagnosis.candidates) {
+        if (!seen.insert(c.effect.name + "@" + c.effect.location).second || seen.size() > 16) continue;
+        std::printf("    best %-18s %s  error %.4f%s\n", c.effect.name.c_str(), c.with.c_str(), c.error_after,
+                    c.implausible.empty() ? "" : (" (implausible: " + c.implausible + ")").c_str());
+      }
+    }
   }
   std::fflush(stdout);
   return o;
@@ -192,6 +211,15 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--verbose")) verbose = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--effects")) {
+      g_effects.clear();
+      for (std::string list = argv[i + 1]; !list.empty();) {
+        const size_t comma = list.find(',');
+        g_effects.push_back(list.substr(0, comma));
+        list = comma == std::string::npos ? "" : list.substr(comma + 1);
+      }
+    }
+    if (!std::strcmp(argv[i], "--max-rounds")) g_max_rounds = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--space")) g_space = compare::ParseComparisonSpace(argv[i + 1], "--space");
   }
   const model::ModelSpec nominal = model::DefaultModelSpec();
