@@ -174,7 +174,7 @@ void ApplyExtraBody(ModelSpec& spec, const Effect& e, const Getter& get) {
   body.name = UniqueName(spec, e.location + "_extra");
   body.mass_kg = m;
   body.com_W = spec.bodies[host].com_W + Eigen::Vector3d(0, 0, get("z"));
-  const double radius = 0.05;  // radius of gyration of the new body, m
+  const double radius = kExtraBodyRadiusOfGyration;
   body.inertia_com_W = m * radius * radius * Eigen::Matrix3d::Identity();
   body.note = "added by effect " + e.name + "@" + e.location;
   JointSpec joint;

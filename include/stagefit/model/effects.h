@@ -42,6 +42,10 @@ struct EffectParameterRange {
 /// The range of a sensor-geometry correction's Euler angles, rad (about 34 degrees).
 inline constexpr double kMaxCorrectionTurn = 0.6;
 
+/// The radius of gyration of an extra body (effect extra-body), m: its rocking modes are at
+/// sqrt(kr / (mass r^2)).
+inline constexpr double kExtraBodyRadiusOfGyration = 0.05;
+
 struct Effect;
 
 /// One entry of the catalogue: what the effect is, where it applies, its parameters, and everything
