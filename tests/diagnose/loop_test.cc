@@ -128,6 +128,32 @@ TEST(Loop, AddsATurnedChannelTheStiffnessesAbsorbed) {
   EXPECT_LT(DistanceToTruth(summary.final_model, c), 0.005);
 }
 
+// An accelerometer turned by 14 degrees (seed 15008 of eval_loop: a3x, 150 Hz, 835 frequencies): the
+// stiffness fit absorbs it at 1.01x the floor, 0.012 off the noise-free truth. Its correction held at
+// the estimated turn raises the error by 0.8 % (within the floor's spread) and is kept: the model comes
+// within 0.01 of the truth (eval_loop's criterion; 0.0052). Kept only when the error did not rise, as
+// before, it was not, and the model stays 0.012 off.
+TEST(Loop, KeepsATurnedChannelsCorrectionThatRaisesTheErrorWithinTheNoise) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(15008, 835, "sensor-geometry@a3x", &c, 150));
+  LoopOptions options = Options({});
+  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
+  std::cout << summary.HistoryTable();
+  ASSERT_EQ(summary.history.size(), 3u);  // as given, fit, the turned channel
+  EXPECT_GT(summary.history[2].error, summary.history[1].error);
+  EXPECT_LE(summary.history[2].error, (1 + options.turned_channel_max_rise) * summary.history[1].error);
+  ASSERT_EQ(summary.effects_added.size(), 1u);
+  EXPECT_EQ(summary.effects_added[0].rfind("sensor-geometry@a3x:", 0), 0u) << summary.effects_added[0];
+  EXPECT_LT(DistanceToTruth(summary.final_model, c), 0.01);
+
+  options.turned_channel_max_rise = 0;  // the rule before
+  const LoopSummary strict = RunLoop(nominal, c.measurement, options);
+  EXPECT_TRUE(strict.effects_added.empty());
+  EXPECT_NE(strict.history.back().action.find("a3x looks turned"), std::string::npos) << strict.history.back().action;
+  EXPECT_GT(DistanceToTruth(strict.final_model, c), 0.01);
+}
+
 // Effect-free data (stiffness scatter and noise only, seed 7 as in diagnose_test): the first fit reaches
 // the floor and the loop stops there without diagnosing.
 TEST(Loop, AddsNothingToEffectFreeData) {
