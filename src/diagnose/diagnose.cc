@@ -532,7 +532,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       for (double f : extra_body_start_hz) {
         const double w = 2 * M_PI * f;
         e.parameters["k"] = e.parameters["mass"] * w * w;
-        e.parameters["kr"] = e.parameters["mass"] * 0.0025 * w * w;
+        // Its rocking modes at the same frequency.
+        e.parameters["kr"] = e.parameters["mass"] * std::pow(model::kExtraBodyRadiusOfGyration, 2) * w * w;
         add_try(e);
       }
     } else {
@@ -684,7 +685,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         // not, kr 24x too soft, 2.7x the floor, with 70 % of the error in 281-354 Hz).
         std::optional<double> hz;
         try {
-          hz = WorstBandCentreHz(search, ApplyCandidate(summary, unique[i]));
+          hz = WorstBandCentreHz(search, ApplyCandidate(summary, unique[i]));  // leaders[i] continues unique[i]
         } catch (const std::exception&) {
           // A leader whose model cannot be evaluated gets no such start.
         }
