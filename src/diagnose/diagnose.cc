@@ -57,6 +57,7 @@ std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const
 
 std::string Explain(const Candidate& c) { return model::ExplainEffect(c.effect); }
 
+
 /// "explains why the model's mode at X Hz is measured at Y Hz": the measured mode whose pairing
 /// improves most when the effect is added.
 /// `before` is the baseline's pairing.
@@ -671,14 +672,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // of 7.2 kg, 141 mm above the hexapod (seed 1028) lost to an extra body rigid in translation
       // (k 6.8e12 N/m, 1.16x the floor): the payload's own fits, from 1.5 kg at its host's centre of
       // mass, stopped at 7x the floor; from the extra body's mass and height it reached the floor.
+      const auto& rigid_limit = model::FindEffectDefinition(leaders[i].effect.name).rigid_limit;
+      if (rigid_limit) {
+        const model::Effect limit = rigid_limit(leaders[i].effect);
+        leaders.push_back({limit, leaders[i].start, {}});
+        leaders.push_back({limit, as_given, {}});
+      }
       if (leaders[i].effect.name == "extra-body") {
-        model::Effect payload;
-        payload.name = "payload";
-        payload.location = leaders[i].effect.location;
-        payload.parameters = {{"mass", leaders[i].effect.parameters.at("mass")}, {"x", 0.0}, {"y", 0.0},
-                              {"z", leaders[i].effect.parameters.at("z")}};
-        leaders.push_back({payload, leaders[i].start, {}});
-        leaders.push_back({payload, as_given, {}});
         // Its rocking modes, like its translation, are found only from near their frequency: also
         // started with kr putting them at the centre of the band where the leader's own error is
         // largest (13008: a body at 246 Hz found with its mass and height, its rocking mode at 301 Hz
@@ -784,6 +784,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     if (!c.implausible.empty()) c.helps = false;
   }
   std::stable_partition(unique.begin(), unique.end(), [](const Candidate& c) { return c.helps; });
+  NameRigidLimitFirst(&unique);
   summary.candidates = unique;
   summary.effect_found = !summary.candidates.empty() && summary.candidates[0].helps;
 
@@ -872,6 +873,21 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   summary.verdict = verdict.str();
   summary.time_s = Clock() - start;
   return summary;
+}
+
+void NameRigidLimitFirst(std::vector<Candidate>* candidates) {
+  if (candidates->empty() || !(*candidates)[0].helps) return;
+  const Candidate& leader = (*candidates)[0];
+  if (!model::FindEffectDefinition(leader.effect.name).rigid_limit) return;
+  const std::string limit = model::FindEffectDefinition(leader.effect.name).rigid_limit(leader.effect).name;
+  for (size_t j = 1; j < candidates->size(); ++j) {
+    const Candidate& c = (*candidates)[j];
+    if (c.helps && c.effect.name == limit && c.effect.location == leader.effect.location &&
+        c.error_after <= (1 + kRigidLimitTolerance) * leader.error_after) {
+      std::rotate(candidates->begin(), candidates->begin() + j, candidates->begin() + j + 1);
+      return;
+    }
+  }
 }
 
 model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate& candidate) {

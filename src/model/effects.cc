@@ -315,6 +315,9 @@ std::vector<EffectDefinition> MakeCatalogue() {
       return Format("a body of about %.1f kg", Get(e, "mass")) + " attached to " + e.location +
              Format(" by a compliant joint: a local mode near %.0f Hz", f);
     };
+    d.rigid_limit = [](const Effect& e) {
+      return Effect{"payload", e.location, Params{{"mass", Get(e, "mass")}, {"x", 0.0}, {"y", 0.0}, {"z", Get(e, "z")}}};
+    };
     d.adds_mass = true;
     c.push_back(d);
   }

@@ -261,5 +261,42 @@ TEST(Diagnose, FindsAHiddenPayloadAnExtraBodyApproximates) {
   EXPECT_LT(best.error_after, 1.1 * run.floor);
 }
 
+// The rigid-limit rule on hand-made rankings: a payload within 1 % of an extra body at the same body is
+// named first; one further off, at another body, or one that does not help is not; an effect without a
+// rigid limit keeps its place.
+TEST(NameRigidLimitFirst, NamesThePayloadAnExtraBodyCannotBeToldFrom) {
+  auto candidate = [](const std::string& name, const std::string& location, double error, bool helps = true) {
+    Candidate c;
+    c.effect.name = name;
+    c.effect.location = location;
+    c.effect.parameters = name == "extra-body" ? std::map<std::string, double>{{"mass", 7.3}, {"k", 1e9}, {"kr", 500}, {"z", 0.075}}
+                                               : std::map<std::string, double>{{"mass", 7.4}, {"x", 0}, {"y", 0}, {"z", 0.075}};
+    c.error_after = error;
+    c.helps = helps;
+    return c;
+  };
+  auto names = [](const std::vector<Candidate>& list) {
+    std::string out;
+    for (const auto& c : list) out += c.effect.name + "@" + c.effect.location + " ";
+    return out;
+  };
+  std::vector<Candidate> list = {candidate("extra-body", "hexapod", 0.03740), candidate("coupled-stiffness", "rz.Dx-Ry", 0.1),
+                                 candidate("payload", "hexapod", 0.03744)};
+  NameRigidLimitFirst(&list);
+  EXPECT_EQ(names(list), "payload@hexapod extra-body@hexapod coupled-stiffness@rz.Dx-Ry ");
+  list = {candidate("extra-body", "hexapod", 0.03740), candidate("payload", "hexapod", 0.0380)};  // 1.6 % above
+  NameRigidLimitFirst(&list);
+  EXPECT_EQ(names(list), "extra-body@hexapod payload@hexapod ");
+  list = {candidate("extra-body", "hexapod", 0.03740), candidate("payload", "rz", 0.03741)};
+  NameRigidLimitFirst(&list);
+  EXPECT_EQ(names(list), "extra-body@hexapod payload@rz ");
+  list = {candidate("extra-body", "hexapod", 0.03740), candidate("payload", "hexapod", 0.03741, false)};
+  NameRigidLimitFirst(&list);
+  EXPECT_EQ(names(list), "extra-body@hexapod payload@hexapod ");
+  list = {candidate("coupled-stiffness", "hexapod.Dy-Rx", 0.03740), candidate("payload", "hexapod", 0.03740)};
+  NameRigidLimitFirst(&list);
+  EXPECT_EQ(names(list), "coupled-stiffness@hexapod.Dy-Rx payload@hexapod ");
+}
+
 }  // namespace
 }  // namespace stagefit::diagnose

@@ -192,7 +192,7 @@ TEST(GeometryCorrection, ACorrectedProjectionIsWeighedWithItsOwnNoise) {
   const int a2x = static_cast<int>(std::find_if(sensors.begin(), sensors.end(), [](const auto& s) { return s.name == "a2x"; }) -
                                    sensors.begin());
   ASSERT_LT(a2x, static_cast<int>(sensors.size()));
-  for (const Eigen::Vector3d euler : {Eigen::Vector3d(0, 0, 15 * M_PI / 180), Eigen::Vector3d(0, 15 * M_PI / 180, 0)}) {
+  for (const Eigen::Vector3d& euler : {Eigen::Vector3d(0, 0, 15 * M_PI / 180), Eigen::Vector3d(0, 15 * M_PI / 180, 0)}) {
     CorrectionCase c = MakeCase(false, a2x, Eigen::Vector3d::Zero(), euler);
     synthetic::AddNoise(c.data, {0.02, 0.02, 3});
     const auto comparison = compare::Comparison::Create(nominal, c.data);

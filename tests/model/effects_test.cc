@@ -77,6 +77,45 @@ TEST(Effects, ExtraBodyAddsSixDofWithTheGivenLocalMode) {
   EXPECT_GE(near, 2);  // the local mode in x and y (granite barely moves at 100 Hz)
 }
 
+// An extra body's rigid limit is a payload of its mass at its height: with its joint 1e6x stiffer than
+// the stack's, the stack's modes below 1 kHz are those of the payload model, but for the body's own
+// rotary inertia (mass x kExtraBodyRadiusOfGyration^2, 0.019 kg m^2 here) that the point-mass payload
+// lacks. A mode of the hexapod's translation (Dz, the body on its axis) agrees to 1e-6; one of its
+// rotation about axis a is lower by sqrt(I_a / (I_a + m r^2)), I_a the hexapod's inertia with the
+// payload (5 % at Rx, Ry, Rz); every other mode agrees to 1 % (the hexapod's Dx and Dy, coupled to its
+// rotations by the body's height, move by 0.56 %; the modes of the stages below it by less).
+TEST(Effects, AnExtraBodyWithARigidJointIsItsRigidLimit) {
+  const ModelSpec base = DefaultModelSpec();
+  const Effect body = ParseEffect("extra-body@hexapod:mass=7.4,k=1e14,kr=1e13,z=0.075", base);
+  const auto& definition = FindEffectDefinition("extra-body");
+  ASSERT_TRUE(definition.rigid_limit);
+  const Effect limit = definition.rigid_limit(body);
+  EXPECT_EQ(limit.ToString(), "payload@hexapod:mass=7.4000000000000004,x=0,y=0,z=0.074999999999999997");
+  EXPECT_FALSE(FindEffectDefinition("payload").rigid_limit);
+  ModelSpec with_body = base, with_limit = base;
+  ApplyEffect(with_body, body);
+  ApplyEffect(with_limit, limit);
+  const auto body_modes = CalcModes(AssembledModel::Assemble(with_body)).modes;
+  const auto limit_model = AssembledModel::Assemble(with_limit);
+  const Eigen::Matrix3d inertia = with_limit.bodies[FindBody(with_limit, "hexapod")].inertia_com_W;
+  const double own = 7.4 * kExtraBodyRadiusOfGyration * kExtraBodyRadiusOfGyration;
+  int compared = 0;
+  for (const auto& m : CalcModes(limit_model).modes) {
+    if (m.frequency_hz > 1000) continue;
+    const std::string dof = limit_model.dof_names()[m.dominant_dof];
+    double expected = m.frequency_hz, tolerance = 0.01;
+    if (dof == "hexapod.Dz") tolerance = 1e-6;
+    for (int a = 0; a < 3; ++a) {
+      if (dof == std::string("hexapod.R") + "xyz"[a]) expected *= std::sqrt(inertia(a, a) / (inertia(a, a) + own));
+    }
+    double nearest = 1e300;
+    for (const auto& b : body_modes) nearest = std::min(nearest, std::abs(b.frequency_hz / expected - 1));
+    EXPECT_LT(nearest, tolerance) << dof << " " << m.frequency_hz << " Hz";
+    ++compared;
+  }
+  EXPECT_GE(compared, 20);
+}
+
 TEST(Effects, EffectsSurviveTheModelFileRoundTrip) {
   ModelSpec spec = DefaultModelSpec();
   for (const char* text : {"payload@hexapod:mass=3,z=0.05", "extra-body@rz:mass=4,k=1e7,kr=1e5", "servo-stiffness@rz.Rz",

@@ -72,6 +72,11 @@ struct EffectDefinition {
   bool measured_side_only = false;
   /// Set by the experiment rather than fitted from a hammer test (a spin rate).
   bool set_by_experiment = false;
+  /// The simpler effect this one tends to when its compliance goes rigid, at the same location, with the
+  /// parameters they share carried over (an extra body: a payload of its mass at its height). Empty when
+  /// the effect has none. A diagnosis fits the limit from each leader of this effect, and names the limit
+  /// when the data cannot tell the two apart.
+  std::function<Effect(const Effect&)> rigid_limit;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
