@@ -5,6 +5,7 @@
 #include "stagefit/common/error.h"
 #include "stagefit/common/memory.h"
 #include "stagefit/common/parallel.h"
+#include "stagefit/fit/least_squares.h"
 
 namespace stagefit::cli {
 
@@ -20,6 +21,7 @@ int main(int argc, char** argv) {
   // An interrupted run (Ctrl-C) leaves the earlier outputs intact and no temporary file behind.
   stagefit::RemoveTemporaryFilesOnSignal();
   stagefit::KeepFreedMemory();  // fits allocate and free large arrays per evaluation
+  stagefit::fit::SilenceSolverLog();  // the fits handle a failed evaluation; Ceres would log each
   CLI::App app{"stagefit: models of precision positioning stages, tuned against vibration measurements"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "stagefit 0.1.0");

@@ -779,6 +779,11 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
     el.share = total_num > 0 ? num.row(k).sum() / total_num : 0.0;
     el.mean_log_magnitude = d > 0 ? mean_re(k) / d : 0.0;
     el.mean_phase_rad = d > 0 ? mean_im(k) / d : 0.0;
+    if (num.row(k).sum() > 0) {
+      Eigen::Index worst = 0;
+      el.worst_band_share = num.row(k).maxCoeff(&worst) / num.row(k).sum();
+      el.worst_band = bands[worst];
+    }
     result.elements.push_back(el);
   }
   std::vector<int> kept;

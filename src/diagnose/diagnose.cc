@@ -186,7 +186,14 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
   }
   std::string named;
   for (size_t k = 0; k < elements.size() && k < 3; ++k) {
-    named += (named.empty() ? "" : ", ") + elements[k].name + Format(" (%.0f %%)", 100 * elements[k].share);
+    named += (named.empty() ? "" : ", ") + elements[k].name + Format(" (%.0f %%", 100 * elements[k].share);
+    // The first element's own worst band, when it holds a part of it that its bands would not by
+    // chance (a third).
+    if (k == 0 && elements[k].worst_band_share > 1.0 / 3) {
+      named += Format(", %.0f %% of it in %.0f-", 100 * elements[k].worst_band_share, elements[k].worst_band.low_hz) +
+               Format("%.0f Hz", elements[k].worst_band.high_hz);
+    }
+    named += ")";
   }
   if (!named.empty()) text += (text.empty() ? "" : "; elements ") + named;
   return text;

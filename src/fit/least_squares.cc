@@ -1,6 +1,7 @@
 #include "stagefit/fit/least_squares.h"
 
 #include <ceres/ceres.h>
+#include <glog/logging.h>
 #include <nlopt.h>
 
 #include <Eigen/SVD>
@@ -870,5 +871,7 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
   summary.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return summary;
 }
+
+void SilenceSolverLog() { FLAGS_minloglevel = google::GLOG_FATAL; }
 
 }  // namespace stagefit::fit

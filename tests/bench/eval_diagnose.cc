@@ -19,12 +19,14 @@
 #include "stagefit/common/memory.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/diagnose/diagnose.h"
+#include "stagefit/fit/least_squares.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 int main(int argc, char** argv) {
   using namespace stagefit;
   KeepFreedMemory();  // as the stagefit program does
+  fit::SilenceSolverLog();
   int cases = 30, effect_free = 10, two_effects = 0, verbose = 0, points = 300;
   uint64_t first_seed = 1000;
   for (int i = 1; i + 1 < argc; i += 2) {

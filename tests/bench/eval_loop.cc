@@ -10,13 +10,15 @@
 // plate, bending or in-plane, or a cable between the granite and the hexapod, kinds in turn, changing
 // the data by 8-32 noise standard deviations): whether
 // the loop adds nothing, and whether its last diagnosis localises what is missing: one of the two
-// worst bands it names holds the frequency where the hidden part changes the data most, and one of
-// the three worst elements it names (or its least rigid channel) is on a channel the hidden part
-// changes most.
+// worst bands it names holds the frequency where the hidden part changes the data most (or, counted
+// apart, the worst element's own worst band, named with it when it holds a third of its error), and
+// one of the three worst elements it names (or its least rigid channel) is on a channel the hidden
+// part changes most.
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
-//                  [--verbose 1|2]
+//                  [--outside-kinds k1,k2,..] [--verbose 1|2]
+//   --outside-kinds: the out-of-catalogue kinds taken in turn (default plate-bending,plate-breathing,cable);
 //   --verbose 2 also prints the last diagnosis' best candidate of every effect and location (16 at most);
 //   --effects a,b tries only these effects of the catalogue.
 //   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them, then
@@ -34,6 +36,7 @@
 #include "stagefit/common/memory.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/diagnose/loop.h"
+#include "stagefit/fit/least_squares.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/synthetic/outside_catalogue.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
@@ -144,6 +147,7 @@ struct OutsideOutcome {
   bool claimed = false;  // and confirmed: the loop ends at the floor with it (LoopSummary::confirmed)
   bool at_floor = false;  // the loop ended within 1.2x the floor: the hidden part is absorbed or unseen in this space
   bool band = false;     // a worst band named holds the peak of the change
+  bool element_band = false;  // the worst element's own worst band, named with it, holds it
   bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
   double time_s = 0;
 };
@@ -165,6 +169,10 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   o.claimed = o.added && summary.confirmed;
   for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
     o.band = o.band || (hidden.peak_hz >= last.worst_bands[k].band.low_hz && hidden.peak_hz <= last.worst_bands[k].band.high_hz);
+  }
+  if (!last.worst_elements.empty() && last.worst_elements[0].worst_band_share > 1.0 / 3) {
+    const auto& b = last.worst_elements[0].worst_band;
+    o.element_band = hidden.peak_hz >= b.low_hz && hidden.peak_hz <= b.high_hz;
   }
   auto changed = [&](const std::string& name) {
     return std::count(hidden.outputs.begin(), hidden.outputs.end(), name) + std::count(hidden.inputs.begin(), hidden.inputs.end(), name) > 0;
@@ -190,7 +198,7 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
               hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), added.empty() ? "(nothing added)" : added.c_str(),
-              summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : "",
+              summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : o.element_band ? "element-band " : "",
               o.channel ? "channel " : "", summary.time_s);
   if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
   std::fflush(stdout);
@@ -201,26 +209,45 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
 
 int main(int argc, char** argv) {
   KeepFreedMemory();  // as the stagefit program does
+  fit::SilenceSolverLog();
   int cases = 10, two_effects = 0, three_effects = 0, effect_free = 0, outside = 0, verbose = 0;
   uint64_t first_seed = 5000;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cases")) cases = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--two-effects")) two_effects = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--outside")) outside = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--three-effects")) three_effects = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--effect-free")) effect_free = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--first-seed")) first_seed = std::strtoull(argv[i + 1], nullptr, 10);
-    if (!std::strcmp(argv[i], "--verbose")) verbose = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--effects")) {
-      g_effects.clear();
-      for (std::string list = argv[i + 1]; !list.empty();) {
-        const size_t comma = list.find(',');
-        g_effects.push_back(list.substr(0, comma));
-        list = comma == std::string::npos ? "" : list.substr(comma + 1);
-      }
+  std::vector<std::string> outside_kinds = {"plate-bending", "plate-breathing", "cable"};
+  auto split = [](std::string list) {
+    std::vector<std::string> items;
+    while (!list.empty()) {
+      const size_t comma = list.find(',');
+      items.push_back(list.substr(0, comma));
+      list = comma == std::string::npos ? "" : list.substr(comma + 1);
     }
-    if (!std::strcmp(argv[i], "--max-rounds")) g_max_rounds = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--space")) g_space = compare::ParseComparisonSpace(argv[i + 1], "--space");
+    return items;
+  };
+  for (int i = 1; i < argc; i += 2) {
+    const std::string option = argv[i];
+    static const std::set<std::string> known = {"--cases",         "--two-effects", "--outside",    "--outside-kinds",
+                                                "--three-effects", "--effect-free", "--first-seed", "--verbose",
+                                                "--effects",       "--max-rounds",  "--space"};
+    if (!known.count(option) || i + 1 >= argc) {
+      std::fprintf(stderr, "eval_loop: %s '%s' (usage: see the head of tests/bench/eval_loop.cc)\n",
+                   known.count(option) ? "no value after" : "unknown option", argv[i]);
+      return 2;
+    }
+    const char* value = argv[i + 1];
+    if (option == "--cases") cases = std::atoi(value);
+    else if (option == "--two-effects") two_effects = std::atoi(value);
+    else if (option == "--outside") outside = std::atoi(value);
+    else if (option == "--outside-kinds") outside_kinds = split(value);
+    else if (option == "--three-effects") three_effects = std::atoi(value);
+    else if (option == "--effect-free") effect_free = std::atoi(value);
+    else if (option == "--first-seed") first_seed = std::strtoull(value, nullptr, 10);
+    else if (option == "--verbose") verbose = std::atoi(value);
+    else if (option == "--effects") g_effects = split(value);
+    else if (option == "--max-rounds") g_max_rounds = std::atoi(value);
+    else if (option == "--space") g_space = compare::ParseComparisonSpace(value, "--space");
+  }
+  if (outside > 0 && outside_kinds.empty()) {
+    std::fprintf(stderr, "eval_loop: --outside-kinds is empty; expected plate-bending, plate-breathing or cable, comma-separated\n");
+    return 2;
   }
   const model::ModelSpec nominal = model::DefaultModelSpec();
   struct Tally {
@@ -250,15 +277,16 @@ int main(int argc, char** argv) {
   run(two_effects, 2, first_seed + cases, &two);
   run(effect_free, 0, first_seed + cases + two_effects, &none);
   run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
-  int outside_clean = 0, outside_added = 0, outside_band = 0, outside_channel = 0, outside_floor = 0;
+  int outside_clean = 0, outside_added = 0, outside_band = 0, outside_element_band = 0, outside_channel = 0, outside_floor = 0;
   double outside_time = 0;
-  const char* kinds[] = {"plate-bending", "plate-breathing", "cable"};
   for (int c = 0; c < outside; ++c) {
-    const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c, kinds[c % 3], verbose);
+    const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c,
+                                            outside_kinds[c % outside_kinds.size()], verbose);
     outside_clean += !o.claimed;
     outside_added += o.added;
     outside_floor += o.at_floor;
     outside_band += !o.at_floor && o.band;
+    outside_element_band += !o.at_floor && o.element_band;
     outside_channel += !o.at_floor && o.channel;
     outside_time += o.time_s;
   }
@@ -290,9 +318,10 @@ int main(int argc, char** argv) {
   }
   if (outside) {
     std::printf("outside the catalogue (%d): no effect claimed %d (%.0f %%; added but not confirmed %d); ended at the floor %d "
-                "(nothing to localise); of the %d above it, worst band named %d, worst channel named %d; mean %.1f s\n",
+                "(nothing to localise); of the %d above it, worst band named %d, worst element's own band named %d, worst channel "
+                "named %d; mean %.1f s\n",
                 outside, outside_clean, pct(outside_clean, outside), outside_added, outside_floor, outside - outside_floor, outside_band,
-                outside_channel, outside_time / outside);
+                outside_element_band, outside_channel, outside_time / outside);
   }
   return 0;
 }

@@ -91,8 +91,12 @@ TEST(BodiesSpace, PerBodyConsistencySinglesOutAChannelThatDoesNotMoveWithItsBody
   // below it the channel is sound.
   for (size_t b = 0; b < rc.bands.size(); ++b) {
     const double share = rc.output_residual_share(bad, static_cast<int>(b));
-    if (rc.bands[b].low_hz <= 150.0 && rc.bands[b].high_hz > 150.0) EXPECT_GT(share, 0.1) << rc.bands[b].centre_hz();
-    if (rc.bands[b].high_hz < 60.0) EXPECT_LT(share, 0.05) << rc.bands[b].centre_hz();
+    if (rc.bands[b].low_hz <= 150.0 && rc.bands[b].high_hz > 150.0) {
+      EXPECT_GT(share, 0.1) << rc.bands[b].centre_hz();
+    }
+    if (rc.bands[b].high_hz < 60.0) {
+      EXPECT_LT(share, 0.05) << rc.bands[b].centre_hz();
+    }
   }
   for (int o = 0; o < data.num_outputs(); ++o) {
     if (data.outputs[o].body == "rz") continue;  // the rz channels share the bad one's projection

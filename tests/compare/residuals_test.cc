@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 
@@ -97,6 +98,31 @@ TEST_F(ResidualsTest, ResidualNormEqualsErrorAndBreakdownAgrees) {
   EXPECT_EQ(result.element_band_error.rows(), static_cast<int>(result.elements.size()));
   EXPECT_EQ(result.element_band_error.cols(), static_cast<int>(result.bands.size()));
   EXPECT_FALSE(result.BriefReport().empty());
+}
+
+// Every element's own worst band: measured 1 % high everywhere and 11.1 % high in one third-octave
+// band, each element's error lies in that band by the share n_b ln(1.111)^2 / (n_b ln(1.111)^2 +
+// (N - n_b) ln(1.01)^2) of its N points, n_b of them in the band (uniform weights at coherence 1).
+TEST_F(ResidualsTest, EachElementNamesTheBandHoldingMostOfItsError) {
+  const auto bands = measurement::MakeFractionalOctaveBands(frequency_hz_(0), frequency_hz_(frequency_hz_.size() - 1), 3);
+  const auto in = std::find_if(bands.begin(), bands.end(), [](const auto& b) { return b.low_hz <= 110.0 && 110.0 < b.high_hz; });
+  ASSERT_NE(in, bands.end());
+  measurement::FrfData scaled = data_;
+  int n_b = 0;
+  for (int k = 0; k < scaled.num_frequencies(); ++k) {
+    const bool hit = scaled.frequency_hz(k) >= in->low_hz && scaled.frequency_hz(k) < in->high_hz;
+    scaled.frf[k] *= hit ? 1.01 * 1.1 : 1.01;
+    n_b += hit;
+  }
+  ASSERT_GT(n_b, 3);
+  const Comparison comparison = Comparison::Create(spec_, scaled);
+  const ComparisonResult result = comparison.Evaluate(spec_);
+  const double a = n_b * std::pow(std::log(1.01 * 1.1), 2), b = (comparison.num_frequencies() - n_b) * std::pow(std::log(1.01), 2);
+  ASSERT_FALSE(result.elements.empty());
+  for (const auto& el : result.elements) {
+    EXPECT_EQ(el.worst_band.low_hz, in->low_hz) << el.name;
+    EXPECT_NEAR(el.worst_band_share, a / (a + b), 1e-9) << el.name;
+  }
 }
 
 // Central differences with relative step h = 1e-6 p: truncation error ~ (h/p)^2 = 1e-12 of the column

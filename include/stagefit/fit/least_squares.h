@@ -269,6 +269,12 @@ inline constexpr double kSeriesProbeShares[] = {0.1, 0.5, 0.9};
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                            const FitOptions& options, const std::vector<SeriesPair>& series = {});
 
+/// Keeps the solver's own log off stderr: Ceres writes "Terminating: Residual and Jacobian evaluation
+/// failed" through glog whenever a trial point makes the model unusable (a spring run to 0 in a
+/// diagnosis' candidate), which the fits here handle (the start or candidate is dropped). A program
+/// calls it once at its start; the library never changes the process' logging by itself.
+void SilenceSolverLog();
+
 /// Relative rank tolerance on the singular values of the column-scaled Jacobian.
 inline constexpr double kRankTolerance = 1e-10;
 
