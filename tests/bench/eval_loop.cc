@@ -25,6 +25,7 @@
 //   three-effect cases, then out-of-catalogue cases.
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -89,7 +90,14 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
   loop_options.diagnose.comparison.space = g_space;
   loop_options.max_rounds = g_max_rounds;
   loop_options.diagnose.effects = g_effects;
-  if (verbose) loop_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
+  if (verbose) {
+    // Each line with the seconds since the case started (the diagnosis' own lines count from its start).
+    const auto t0 = std::chrono::steady_clock::now();
+    loop_options.progress = [t0](const std::string& line) {
+      std::printf("    %6.1f  %s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), line.c_str());
+      std::fflush(stdout);
+    };
+  }
   const diagnose::LoopSummary summary = diagnose::RunLoop(nominal, hidden.measurement, loop_options);
 
   const auto comparison = compare::Comparison::Create(nominal, hidden.measurement, loop_options.diagnose.comparison);
@@ -161,7 +169,14 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   const auto hidden = synthetic::MakeOutsideCatalogueCase(nominal, seed, kind, options);
   diagnose::LoopOptions loop_options;
   loop_options.diagnose.comparison.space = g_space;
-  if (verbose) loop_options.progress = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
+  if (verbose) {
+    // Each line with the seconds since the case started (the diagnosis' own lines count from its start).
+    const auto t0 = std::chrono::steady_clock::now();
+    loop_options.progress = [t0](const std::string& line) {
+      std::printf("    %6.1f  %s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), line.c_str());
+      std::fflush(stdout);
+    };
+  }
   const diagnose::LoopSummary summary = diagnose::RunLoop(nominal, hidden.measurement, loop_options);
   const diagnose::DiagnoseSummary& last = summary.last_diagnosis;
   OutsideOutcome o;
