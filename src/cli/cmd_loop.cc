@@ -120,6 +120,7 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"effects_added", summary.effects_added},
                                {"stop_reason", summary.stop_reason},
                                {"confirmed", summary.confirmed},
+                               {"implausible_effects", summary.implausible_effects},
                                {"conclusion", summary.conclusion},
                                {"channel_faults", channel_faults},
                                {"last_verdict", summary.last_verdict},

@@ -124,6 +124,16 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
                                  ") lower the error, but whether they explain the measurement cannot be told.";
   }
   const double times = error / summary.noise_floor.floor;
+  if (!summary.implausible_effects.empty() && times <= kDoneTimesFloor) {
+    std::snprintf(line, sizeof line, "Not confirmed: the model ends at the noise floor (%.2f x %.4f), but ", times,
+                  summary.noise_floor.floor);
+    std::string text = line;
+    for (size_t k = 0; k < summary.implausible_effects.size(); ++k) {
+      text += (k ? "; " : "") + summary.implausible_effects[k];
+    }
+    return text + ". A value at the bound of its range is where a fit stopped, not what the stage holds: the effect may stand in "
+                  "for something else (check the channel or part it names), and the model is kept as the best the loop found.";
+  }
   if (summary.confirmed) {
     std::snprintf(line, sizeof line, "The model ends at the noise floor (%.2f x %.4f)", times, summary.noise_floor.floor);
     return std::string(line) + (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
@@ -191,6 +201,19 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     *current = trial;
   }
   return dropped;
+}
+
+std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_given, const model::ModelSpec& final, double band_low_hz) {
+  std::vector<std::string> found;
+  for (size_t k = as_given.effects.size(); k < final.effects.size(); ++k) {
+    model::ModelSpec without = final;
+    std::vector<model::Effect> others = final.effects;
+    others.erase(others.begin() + static_cast<long>(k));
+    model::SetEffects(without, others);
+    const std::string why = ImplausibleBecause(without, final.effects[k], band_low_hz);
+    if (!why.empty()) found.push_back(final.effects[k].name + "@" + final.effects[k].location + ": " + why);
+  }
+  return found;
 }
 
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options) {
@@ -316,7 +339,9 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.stop_reason = "at the noise floor";
   }
   if (options.turned_channel_deg > 0) AddTurnedChannel(measurement, comparison, options, &current, &summary);
-  summary.confirmed = at_floor(summary.history.back().error);  // false when the floor is unknown (NaN)
+  summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
+  // false when the floor is unknown (NaN)
+  summary.confirmed = at_floor(summary.history.back().error) && summary.implausible_effects.empty();
   summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;
@@ -325,7 +350,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     current.history.push_back({"loop: " + step.action, step.error, step.effect.empty() ? "" : "--with " + step.effect});
   }
   if (!summary.confirmed && !summary.effects_added.empty()) {
-    current.history.push_back({"loop: effects not confirmed (the model is not at the noise floor)", summary.history.back().error, ""});
+    current.history.push_back({summary.implausible_effects.empty()
+                                   ? "loop: effects not confirmed (the model is not at the noise floor)"
+                                   : "loop: effects not confirmed (" + summary.implausible_effects[0] + ")",
+                               summary.history.back().error, ""});
   }
   summary.final_model = current;
   summary.time_s = Now() - start;

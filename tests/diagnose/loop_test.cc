@@ -206,6 +206,21 @@ TEST(Loop, TakesTheDiagnosisBaselineWhenItIsBetter) {
 // offset, at the floor) is refitted without the coupling to within 5 % of its error, so the coupling
 // goes and the offset stays; checked the other way round (the coupling the newest), the offset earns
 // its place.
+// The loop's last check: an effect it added whose refitted value sits at the bound of its range is
+// listed (and the model not confirmed); a plausible one is not, nor an effect of the model as given,
+// however absurd (the user's).
+TEST(ImplausibleAddedEffects, ListsAnAddedEffectAtItsBoundOnly) {
+  model::ModelSpec as_given = model::DefaultModelSpec();
+  model::ApplyEffect(as_given, model::ParseEffect("sensor-geometry@a1x:dz=0.05", as_given));
+  model::ModelSpec final = as_given;
+  model::ApplyEffect(final, model::ParseEffect("sensor-geometry@h5:dz=0.05", final));
+  model::ApplyEffect(final, model::ParseEffect("joint-offset@hexapod:dz=0.01", final));
+  const std::vector<std::string> found = ImplausibleAddedEffects(as_given, final, 5.0);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].rfind("sensor-geometry@h5: dz = 0.05 m is at the bound", 0), 0u) << found[0];
+  EXPECT_TRUE(ImplausibleAddedEffects(final, final, 5.0).empty());
+}
+
 TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});

@@ -79,6 +79,11 @@ struct LoopSummary {
   /// it (a cable from the granite to the hexapod was fitted as an extra body at 1.8x the floor, and as
   /// a loss factor at 1.7x). They stay in the final model, the best the loop found, marked so.
   bool confirmed = false;
+  /// Effects the loop added whose final, refitted values are physically absurd (ImplausibleBecause():
+  /// a length or turn at the bound of its range, a mass above the stack's), "<effect>@<location>: why".
+  /// The diagnosis checks its candidates; the refits after it can carry a value to its bound. The
+  /// model is then not confirmed, at the floor or not.
+  std::vector<std::string> implausible_effects;
   /// In words: which effects explain the measurement, or that nothing is confirmed and where (bands,
   /// elements) the final model's remaining error sits.
   std::string conclusion;
@@ -106,6 +111,11 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                              const LoopOptions& options, const model::Effect& newest,
                                              model::ModelSpec* current, std::vector<LoopStep>* history);
+
+/// The effects of `final` after those of `as_given` (the ones the loop added) that ImplausibleBecause()
+/// finds absurd, each checked against `final` without it: "<effect>@<location>: why".
+std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_given, const model::ModelSpec& final,
+                                                 double band_low_hz);
 
 /// `step,action,effect,error,noise_floor,times_floor` (header first; empty noise fields when the
 /// floor is unknown), one row per step.
