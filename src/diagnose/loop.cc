@@ -40,6 +40,30 @@ std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const
   }
 }
 
+/// `current` with `effects` in place of its own, refitted from two starts, the better kept: the loop's
+/// state (the model's and the kept effects' parameters as they are), and the model as given with
+/// `effects` (FitFromAsGiven). The error is +infinity when both fail.
+std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                                     const LoopOptions& options, const model::ModelSpec& current,
+                                                     const std::vector<model::Effect>& effects) {
+  model::ModelSpec trial = current;
+  double trial_error = std::numeric_limits<double>::infinity();
+  try {
+    model::SetEffects(trial, effects);
+    fit::FitModel(trial, comparison, model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)),
+                  options.fit);
+    trial_error = comparison.Error(trial);
+  } catch (const std::exception&) {
+  }
+  if (auto restart = FitFromAsGiven(as_given, comparison, effects, options)) {
+    if (const double e = comparison.Error(restart->spec); e < trial_error) {
+      trial = restart->spec;
+      trial_error = e;
+    }
+  }
+  return {trial, trial_error};
+}
+
 /// The turned-channel step of LoopOptions::turned_channel_deg on `current`; true when a correction was
 /// kept (then the last effect of `current`).
 bool AddTurnedChannel(const measurement::FrfData& measurement,
@@ -174,21 +198,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     std::vector<model::Effect> without = current->effects;
     without.erase(without.begin() + static_cast<long>(k));
     // Refitted without it from two starts, the better kept: the loop's state, and the model as given.
-    model::ModelSpec trial = *current;
-    double trial_error = std::numeric_limits<double>::infinity();
-    try {
-      model::SetEffects(trial, without);
-      fit::FitModel(trial, comparison, model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)),
-                    options.fit);
-      trial_error = comparison.Error(trial);
-    } catch (const std::exception&) {
-    }
-    if (auto restart = FitFromAsGiven(as_given, comparison, without, options)) {
-      if (const double e = comparison.Error(restart->spec); e < trial_error) {
-        trial = restart->spec;
-        trial_error = e;
-      }
-    }
+    auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, without);
     const double with_error = history->back().error;
     const int num_parameters = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size());
     const double delta_bic = n * std::log(std::pow(with_error / trial_error, 2)) + num_parameters * std::log(n);
@@ -229,21 +239,7 @@ std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const
     with_limit[k] = rigid_limit(effect);
     // Refitted from two starts, the better kept, as DropUnneededEffects does: the loop's state with the
     // limit in the effect's place, and the model as given.
-    model::ModelSpec trial = *current;
-    double trial_error = std::numeric_limits<double>::infinity();
-    try {
-      model::SetEffects(trial, with_limit);
-      fit::FitModel(trial, comparison, model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)),
-                    options.fit);
-      trial_error = comparison.Error(trial);
-    } catch (const std::exception&) {
-    }
-    if (auto restart = FitFromAsGiven(as_given, comparison, with_limit, options)) {
-      if (const double e = comparison.Error(restart->spec); e < trial_error) {
-        trial = restart->spec;
-        trial_error = e;
-      }
-    }
+    const auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, with_limit);
     if (!(trial_error <= (1 + kRigidLimitTolerance) * history->back().error)) continue;
     const std::string from = effect.name + "@" + effect.location, to = with_limit[k].name + "@" + with_limit[k].location;
     history->push_back({"take " + to + " for " + from + " (its rigid limit)", trial.effects[k].ToString(), trial_error});
