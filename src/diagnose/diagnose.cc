@@ -188,8 +188,8 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
   for (size_t k = 0; k < elements.size() && k < 3; ++k) {
     named += (named.empty() ? "" : ", ") + elements[k].name + Format(" (%.0f %%", 100 * elements[k].share);
     // The first element's own worst band, when it holds a part of it that its bands would not by
-    // chance (a third).
-    if (k == 0 && elements[k].worst_band_share > 1.0 / 3) {
+    // chance (kElementBandShareNamed).
+    if (k == 0 && elements[k].worst_band_share > kElementBandShareNamed) {
       named += Format(", %.0f %% of it in %.0f-", 100 * elements[k].worst_band_share, elements[k].worst_band.low_hz) +
                Format("%.0f Hz", elements[k].worst_band.high_hz);
     }
@@ -885,8 +885,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
 void NameRigidLimitFirst(std::vector<Candidate>* candidates) {
   if (candidates->empty() || !(*candidates)[0].helps) return;
   const Candidate& leader = (*candidates)[0];
-  if (!model::FindEffectDefinition(leader.effect.name).rigid_limit) return;
-  const std::string limit = model::FindEffectDefinition(leader.effect.name).rigid_limit(leader.effect).name;
+  const auto& rigid_limit = model::FindEffectDefinition(leader.effect.name).rigid_limit;
+  if (!rigid_limit) return;
+  const std::string limit = rigid_limit(leader.effect).name;
   for (size_t j = 1; j < candidates->size(); ++j) {
     const Candidate& c = (*candidates)[j];
     if (c.helps && c.effect.name == limit && c.effect.location == leader.effect.location &&

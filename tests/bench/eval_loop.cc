@@ -188,7 +188,7 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
     o.band = o.band || (hidden.peak_hz >= last.worst_bands[k].band.low_hz && hidden.peak_hz <= last.worst_bands[k].band.high_hz);
   }
-  if (!last.worst_elements.empty() && last.worst_elements[0].worst_band_share > 1.0 / 3) {
+  if (!last.worst_elements.empty() && last.worst_elements[0].worst_band_share > diagnose::kElementBandShareNamed) {
     const auto& b = last.worst_elements[0].worst_band;
     o.element_band = hidden.peak_hz >= b.low_hz && hidden.peak_hz <= b.high_hz;
   }

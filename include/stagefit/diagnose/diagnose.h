@@ -158,6 +158,11 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
 /// this many times the floor is done; above the second, with no candidate that helps or with the best
 /// one still above it, something outside the catalogue is missing.
 inline constexpr double kDoneTimesFloor = 1.2;
+
+/// The verdicts' "where" names the worst element's own worst band (compare::ElementError::worst_band)
+/// when that band holds more than this share of the element's error: a third, where an even spread
+/// over the dozen bands of a test would put a twelfth.
+inline constexpr double kElementBandShareNamed = 1.0 / 3;
 inline constexpr double kOutsideTimesFloor = 2.0;
 
 struct ModeMismatch {
