@@ -64,6 +64,13 @@ std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_
   return {trial, trial_error};
 }
 
+/// The --with text of each of `effects` (LoopSummary::effects_added).
+std::vector<std::string> EffectTexts(const std::vector<model::Effect>& effects) {
+  std::vector<std::string> texts;
+  for (const auto& e : effects) texts.push_back(e.ToString());
+  return texts;
+}
+
 /// The turned-channel step of LoopOptions::turned_channel_deg on `current`; true when a correction was
 /// kept (then the last effect of `current`).
 bool AddTurnedChannel(const measurement::FrfData& measurement,
@@ -124,8 +131,7 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
                 turned->angle_rad * 180 / M_PI);
   summary->history.push_back({action, with.effects.back().ToString(), after});
   if (options.progress) options.progress(std::string(action) + ": error " + std::to_string(after));
-  summary->effects_added.clear();
-  for (const auto& e : with.effects) summary->effects_added.push_back(e.ToString());
+  summary->effects_added = EffectTexts(with.effects);
   *current = with;
   return true;
 }
@@ -365,8 +371,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
     }
     added = current.effects;
-    summary.effects_added.clear();
-    for (const auto& e : current.effects) summary.effects_added.push_back(e.ToString());
+    summary.effects_added = EffectTexts(current.effects);
   }
   if (summary.stop_reason == "the round limit" && at_floor(summary.history.back().error)) {
     summary.stop_reason = "at the noise floor";
@@ -377,15 +382,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     for (const std::string& key : DropUnneededEffects(spec, comparison, options, current.effects.back(), &current, &summary.history)) {
       say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
     }
-    summary.effects_added.clear();
-    for (const auto& e : current.effects) summary.effects_added.push_back(e.ToString());
+    summary.effects_added = EffectTexts(current.effects);
   }
   if (at_floor(summary.history.back().error)) {
     for (const std::string& change : TakeRigidLimits(spec, comparison, options, &current, &summary.history)) {
       say("took the rigid limit: " + change + ": error " + std::to_string(summary.history.back().error));
     }
-    summary.effects_added.clear();
-    for (const auto& e : current.effects) summary.effects_added.push_back(e.ToString());
+    summary.effects_added = EffectTexts(current.effects);
   }
   summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
   // false when the floor is unknown (NaN)
