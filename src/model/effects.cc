@@ -318,6 +318,10 @@ std::vector<EffectDefinition> MakeCatalogue() {
     d.rigid_limit = [](const Effect& e) {
       return Effect{"payload", e.location, Params{{"mass", Get(e, "mass")}, {"x", 0.0}, {"y", 0.0}, {"z", Get(e, "z")}}};
     };
+    d.local_modes_hz = [](const Effect& e) {
+      const double m = Get(e, "mass"), inertia = m * kExtraBodyRadiusOfGyration * kExtraBodyRadiusOfGyration;
+      return std::vector<double>{std::sqrt(Get(e, "k") / m) / (2 * M_PI), std::sqrt(Get(e, "kr") / inertia) / (2 * M_PI)};
+    };
     d.adds_mass = true;
     c.push_back(d);
   }

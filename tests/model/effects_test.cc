@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <string>
+#include <vector>
+
 #include "stagefit/common/error.h"
 #include "stagefit/model/assembled_model.h"
 #include "stagefit/model/model_file.h"
@@ -114,6 +118,37 @@ TEST(Effects, AnExtraBodyWithARigidJointIsItsRigidLimit) {
     ++compared;
   }
   EXPECT_GE(compared, 20);
+}
+
+// The local modes the catalogue states for an extra body (its host held still) are the modes of the
+// assembled model when the host barely moves: a 0.5 kg body on the 2500 kg granite, its modes well
+// above the granite's own (16-26 Hz on its supports).
+TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
+  const ModelSpec base = DefaultModelSpec();
+  const double m = 0.5, translation_hz = 170, rocking_hz = 430;
+  const double k = m * std::pow(2 * M_PI * translation_hz, 2);
+  const double kr = m * kExtraBodyRadiusOfGyration * kExtraBodyRadiusOfGyration * std::pow(2 * M_PI * rocking_hz, 2);
+  const Effect body{"extra-body", "granite", {{"mass", m}, {"k", k}, {"kr", kr}, {"z", 0.0}}};
+  const auto& definition = FindEffectDefinition("extra-body");
+  ASSERT_TRUE(definition.local_modes_hz);
+  const std::vector<double> stated = definition.local_modes_hz(body);
+  ASSERT_EQ(stated.size(), 2u);
+  EXPECT_NEAR(stated[0], translation_hz, 1e-9 * translation_hz);
+  EXPECT_NEAR(stated[1], rocking_hz, 1e-9 * rocking_hz);
+  EXPECT_FALSE(FindEffectDefinition("payload").local_modes_hz);
+  ModelSpec with_body = base;
+  ApplyEffect(with_body, body);
+  const auto model = AssembledModel::Assemble(with_body);
+  int translation = 0, rocking = 0;
+  for (const auto& mode : CalcModes(model).modes) {
+    const std::string dof = model.dof_names()[mode.dominant_dof];
+    if (dof.rfind("granite_extra.", 0) != 0) continue;
+    const double hz = mode.frequency_hz;
+    translation += std::abs(hz / translation_hz - 1) < 0.01;
+    rocking += std::abs(hz / rocking_hz - 1) < 0.01;
+  }
+  EXPECT_EQ(translation, 3);
+  EXPECT_EQ(rocking, 3);
 }
 
 TEST(Effects, EffectsSurviveTheModelFileRoundTrip) {

@@ -120,8 +120,9 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
 /// a "take" step is appended. A diagnosis compares an effect with its limit only among its own
 /// candidates, with the effects of later rounds still missing: a 6.9 kg payload on the hexapod found
 /// in a first round at 3.7x the floor was an extra body whose joint later sat rigid (local mode near
-/// 1 kHz in a 150 Hz band, kr at its 1e14 bound) in the final model at the floor (seed 19018).
-/// Returns "<effect>@<location> -> <limit>@<location>" for each limit taken.
+/// 1 kHz in a 150 Hz band, kr at its 1e14 bound) in the final model at the floor (seed 19018). An effect
+/// with a local mode inside the comparison's band (model::EffectDefinition::local_modes_hz) is not
+/// tried: the data see that mode. Returns "<effect>@<location> -> <limit>@<location>" for each limit taken.
 std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                          const LoopOptions& options, model::ModelSpec* current, std::vector<LoopStep>* history);
 

@@ -77,6 +77,10 @@ struct EffectDefinition {
   /// the effect has none. A diagnosis fits the limit from each leader of this effect, and names the limit
   /// when the data cannot tell the two apart.
   std::function<Effect(const Effect&)> rigid_limit;
+  /// The frequencies (Hz) of the effect's own local modes with its host held still (an extra body:
+  /// its translation and rocking modes); empty when the effect has none. A mode inside the measured
+  /// band is seen by the data, so the effect there is not its rigid limit.
+  std::function<std::vector<double>(const Effect&)> local_modes_hz;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
