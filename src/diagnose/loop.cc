@@ -245,14 +245,10 @@ std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const
     if (!definition.rigid_limit) continue;
     // A local mode inside the band is in the data: the effect is not rigid there (seed 5010: a 2.9 kg
     // body at 106 Hz, whose payload refit took 35 s of a 174 s loop and was not taken).
-    if (definition.local_modes_hz) {
-      const std::vector<double> modes = definition.local_modes_hz(effect);
-      const bool seen = std::any_of(modes.begin(), modes.end(), [&](double hz) { return hz >= band_low_hz && hz <= band_high_hz; });
-      if (seen) continue;
-    }
-    const auto& rigid_limit = definition.rigid_limit;
+    const std::vector<double> modes = definition.local_modes_hz ? definition.local_modes_hz(effect) : std::vector<double>{};
+    if (std::any_of(modes.begin(), modes.end(), [&](double hz) { return hz >= band_low_hz && hz <= band_high_hz; })) continue;
     std::vector<model::Effect> with_limit = current->effects;
-    with_limit[k] = rigid_limit(effect);
+    with_limit[k] = definition.rigid_limit(effect);
     // Refitted from two starts, the better kept, as DropUnneededEffects does: the loop's state with the
     // limit in the effect's place, and the model as given.
     const auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, with_limit);

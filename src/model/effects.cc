@@ -164,6 +164,12 @@ void ApplyPayload(ModelSpec& spec, const Effect& e, const Getter& get) {
   AddMass(b, m, b.com_W + Eigen::Vector3d(get("x"), get("y"), get("z")), 0.0);
 }
 
+// An extra body's translation and rocking modes with its host held still, Hz.
+std::vector<double> ExtraBodyLocalModesHz(const Effect& e) {
+  const double m = Get(e, "mass"), inertia = m * kExtraBodyRadiusOfGyration * kExtraBodyRadiusOfGyration;
+  return {std::sqrt(Get(e, "k") / m) / (2 * M_PI), std::sqrt(Get(e, "kr") / inertia) / (2 * M_PI)};
+}
+
 void ApplyExtraBody(ModelSpec& spec, const Effect& e, const Getter& get) {
   const int host = RequireBody(spec, e.location, e.name);
   const double m = get("mass"), k = get("k"), kr = get("kr");
@@ -311,17 +317,13 @@ std::vector<EffectDefinition> MakeCatalogue() {
     d.apply = ApplyExtraBody;
     d.range = MassRange;
     d.explain = [](const Effect& e) {
-      const double f = std::sqrt(Get(e, "k") / Get(e, "mass")) / (2 * M_PI);
       return Format("a body of about %.1f kg", Get(e, "mass")) + " attached to " + e.location +
-             Format(" by a compliant joint: a local mode near %.0f Hz", f);
+             Format(" by a compliant joint: a local mode near %.0f Hz", ExtraBodyLocalModesHz(e)[0]);
     };
     d.rigid_limit = [](const Effect& e) {
       return Effect{"payload", e.location, Params{{"mass", Get(e, "mass")}, {"x", 0.0}, {"y", 0.0}, {"z", Get(e, "z")}}};
     };
-    d.local_modes_hz = [](const Effect& e) {
-      const double m = Get(e, "mass"), inertia = m * kExtraBodyRadiusOfGyration * kExtraBodyRadiusOfGyration;
-      return std::vector<double>{std::sqrt(Get(e, "k") / m) / (2 * M_PI), std::sqrt(Get(e, "kr") / inertia) / (2 * M_PI)};
-    };
+    d.local_modes_hz = ExtraBodyLocalModesHz;
     d.adds_mass = true;
     c.push_back(d);
   }
