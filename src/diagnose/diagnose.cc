@@ -221,11 +221,14 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
   const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
   model::Effect nominal = effect;
   nominal.parameters = model::DefaultEffectParameters(baseline, effect.name, effect.location);
-  const std::vector<fit::ParameterSpec> specs = EffectParameterSpecs(baseline, nominal, {}, nullptr);
-  for (size_t k = 0; k < def.parameters.size() && k < specs.size(); ++k) {
+  // The parameters a fit sets (not the redundant ones, which stay where they were started).
+  std::vector<int> positions;
+  const std::vector<fit::ParameterSpec> specs = EffectParameterSpecs(baseline, nominal, {}, &positions);
+  for (size_t i = 0; i < specs.size(); ++i) {
+    const size_t k = static_cast<size_t>(positions[i]);
     const bool length = def.parameters[k].dimension == dim::kLength;
     if (!length && def.parameters[k].dimension != dim::kAngle) continue;
-    const fit::ParameterSpec& b = specs[k];
+    const fit::ParameterSpec& b = specs[i];
     const double value = effect.parameters.at(def.parameters[k].name);
     if (!std::isfinite(b.upper - b.lower)) continue;
     const double margin = 0.01 * (b.upper - b.lower);

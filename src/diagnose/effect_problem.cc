@@ -14,10 +14,15 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
                                                      const std::vector<std::string>& held,
                                                      std::vector<int>* positions) {
   const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
+  const std::vector<std::string> redundant = model::RedundantEffectParameters(base, effect);
+  auto left_out = [&](const std::string& name) {
+    return std::find(held.begin(), held.end(), name) != held.end() ||
+           std::find(redundant.begin(), redundant.end(), name) != redundant.end();
+  };
   std::vector<fit::ParameterSpec> specs;
   for (size_t k = 0; k < def.parameters.size(); ++k) {
     const auto& p = def.parameters[k];
-    if (std::find(held.begin(), held.end(), p.name) != held.end()) continue;
+    if (left_out(p.name)) continue;
     if (positions) positions->push_back(static_cast<int>(k));
     fit::ParameterSpec s;
     s.name = effect.name + "." + p.name;

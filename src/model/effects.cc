@@ -273,6 +273,24 @@ void ApplySensorGeometry(ModelSpec& spec, const Effect& e, const Getter& get) {
   }
 }
 
+/// A channel reads (or a hammer pushes along) its direction d at its position p on a rigid body: an
+/// offset along d changes nothing (d . (omega x d) = 0), nor does a turn about d. With the channel's
+/// largest direction component on axis i, the offset along i and the Euler angle about i are redundant:
+/// the other two offsets reach every offset across d, and the other two angles every direction near d
+/// (RotationFromEuler = Rx Ry Rz: about z exactly null, about x and y a reparameterisation).
+std::vector<std::string> SensorGeometryRedundant(const ModelSpec& before, const Effect& e) {
+  for (const auto* list : {&before.sensors, &before.excitations}) {
+    for (const auto& p : *list) {
+      if (p.name != e.location) continue;
+      int axis = 0;
+      p.direction_W.cwiseAbs().maxCoeff(&axis);
+      const std::string xyz = "xyz";
+      return {std::string("d") + xyz[axis], std::string("r") + xyz[axis]};
+    }
+  }
+  return {};  // a channel the model does not place: nothing known of its direction
+}
+
 void ApplyDelay(ModelSpec& spec, const Effect& e, const Getter& get) {
   const double tau = get("tau");
   CheckRange(e.name, "tau", tau, 0.0, 1.0);
@@ -413,6 +431,7 @@ std::vector<EffectDefinition> MakeCatalogue() {
                     Get(e, "rz") * 180 / M_PI);
     };
     d.measured_side_only = true;
+    d.redundant = SensorGeometryRedundant;
     c.push_back(d);
   }
   {
@@ -523,6 +542,11 @@ EffectParameterRange EffectRange(const ModelSpec& before, const Effect& effect, 
     if (p.name == parameter) return def.range(before, effect, p);
   }
   throw InputError("effect " + effect.name + " has no parameter '" + parameter + "'");
+}
+
+std::vector<std::string> RedundantEffectParameters(const ModelSpec& before, const Effect& effect) {
+  const EffectDefinition& def = FindEffectDefinition(effect.name);
+  return def.redundant ? def.redundant(before, effect) : std::vector<std::string>{};
 }
 
 std::string ExplainEffect(const Effect& effect) { return FindEffectDefinition(effect.name).explain(effect); }

@@ -120,11 +120,26 @@ std::vector<ParameterInfo> MatchParameters(const ModelSpec& spec, const std::vec
 
 std::vector<std::string> EffectParameterPatterns(const ModelSpec& spec) {
   std::vector<std::string> patterns;
-  for (const Effect& e : spec.effects) {
-    if (FindEffectDefinition(e.name).set_by_experiment) continue;
-    // fnmatch: a location's own brackets or stars would be patterns; catalogue locations have none.
-    const std::string pattern = e.name + "@" + e.location + ".*";
+  auto add = [&](const std::string& pattern) {
     if (std::find(patterns.begin(), patterns.end(), pattern) == patterns.end()) patterns.push_back(pattern);
+  };
+  for (size_t k = 0; k < spec.effects.size(); ++k) {
+    const Effect& e = spec.effects[k];
+    const EffectDefinition& def = FindEffectDefinition(e.name);
+    if (def.set_by_experiment) continue;
+    // fnmatch: a location's own brackets or stars would be patterns; catalogue locations have none.
+    const std::string prefix = e.name + "@" + e.location + ".";
+    const std::vector<std::string> redundant =
+        def.redundant ? RedundantEffectParameters(ExpandedBefore(spec, k), e) : std::vector<std::string>{};
+    if (redundant.empty()) {
+      add(prefix + "*");
+      continue;
+    }
+    for (const auto& p : def.parameters) {
+      if (e.parameters.count(p.name) && std::find(redundant.begin(), redundant.end(), p.name) == redundant.end()) {
+        add(prefix + p.name);
+      }
+    }
   }
   return patterns;
 }

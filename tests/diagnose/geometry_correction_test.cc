@@ -13,6 +13,7 @@
 #include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
+#include "stagefit/model/parameters.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 namespace stagefit {
@@ -135,6 +136,60 @@ TEST(GeometryCorrection, MisplacedImpactIsExplainedInBothSpaces) {
     model::ApplyEffect(corrected, model::ParseEffect(c.with, corrected, channels));
     EXPECT_GT(comparison.Error(nominal), 0.005);
     EXPECT_LT(comparison.Error(corrected), 1e-6);
+  }
+}
+
+// A channel reads (or a hammer pushes) along its direction at a point of a rigid body: moved along that
+// direction, or turned about it, it reads the same. The catalogue names those two parameters of every
+// channel's correction as redundant, fits leave them out, and so does the default fit's list of the
+// model's effect parameters. In both spaces, a correction with only them set changes no error to
+// rounding, for each of the 22 channels; in compliance space one of the same size across the direction
+// does.
+TEST(GeometryCorrection, AChannelMovedAlongOrTurnedAboutItsDirectionReadsTheSame) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  // Data with a turned a2y, so that every error is well above rounding.
+  const CorrectionCase c = MakeCase(false, 4, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 15 * M_PI / 180));
+  for (auto space : {compare::ComparisonSpace::kCompliance, compare::ComparisonSpace::kRaw}) {
+    SCOPED_TRACE(compare::ToString(space));
+    compare::ComparisonOptions options;
+    options.space = space;
+    const auto comparison = compare::Comparison::Create(nominal, c.data, options);
+    const double error = comparison.Error(nominal);
+    ASSERT_GT(error, 1e-3);
+    const auto channels = comparison.CorrectableChannels();
+    ASSERT_EQ(channels.size(), 22u);
+    for (const std::string& channel : channels) {
+      SCOPED_TRACE(channel);
+      const model::Effect zero = model::ParseEffect("sensor-geometry@" + channel, nominal, channels);
+      const std::vector<std::string> redundant = model::RedundantEffectParameters(nominal, zero);
+      ASSERT_EQ(redundant.size(), 2u);
+      const char axis = redundant[0][1];  // the channel's own axis
+      EXPECT_EQ(redundant[0], std::string("d") + axis);
+      EXPECT_EQ(redundant[1], std::string("r") + axis);
+      model::Effect along = zero;
+      along.parameters[redundant[0]] = 0.02;
+      along.parameters[redundant[1]] = 0.3;
+      model::ModelSpec moved = nominal;
+      model::ApplyEffect(moved, along);
+      EXPECT_NEAR(comparison.Error(moved), error, 1e-9 * error);
+      // The two offsets across the direction each change what the channel reads: seen in compliance
+      // space, where every channel enters the projection (in raw space a channel's element may count
+      // for nothing, so that an unchanged error there proves nothing).
+      for (const char other : std::string("xyz")) {
+        if (other == axis || space == compare::ComparisonSpace::kRaw) continue;
+        model::Effect across = zero;
+        across.parameters[std::string("d") + other] = 0.02;
+        model::ModelSpec shifted = nominal;
+        model::ApplyEffect(shifted, across);
+        EXPECT_GT(std::abs(comparison.Error(shifted) - error), 1e-6 * error) << "d" << other;
+      }
+      // The default fit's list names the correction's four other parameters.
+      const std::vector<std::string> patterns = model::EffectParameterPatterns(moved);
+      EXPECT_EQ(patterns.size(), 4u);
+      for (const auto& name : redundant) {
+        EXPECT_EQ(std::count(patterns.begin(), patterns.end(), "sensor-geometry@" + channel + "." + name), 0);
+      }
+    }
   }
 }
 

@@ -32,7 +32,8 @@ namespace stagefit::diagnose {
 using model::kMaxCorrectionTurn;
 
 /// Search ranges of the effect parameters (natural units), from the model around the location; the
-/// parameters named in `held` are left out. `positions` (optional) receives each spec's position in the
+/// parameters named in `held` and those the others make redundant there
+/// (model::RedundantEffectParameters) are left out. `positions` (optional) receives each spec's position in the
 /// effect definition's parameter list.
 std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& base, const model::Effect& effect,
                                                      const std::vector<std::string>& held = {},

@@ -81,6 +81,10 @@ struct EffectDefinition {
   /// its translation and rocking modes); empty when the effect has none. A mode inside the measured
   /// band is seen by the data, so the effect there is not its rigid limit.
   std::function<std::vector<double>(const Effect&)> local_modes_hz;
+  /// The parameters the others make redundant at the effect's location on `before` (the model it is
+  /// applied to): no data can set them, and fits leave them at their value (a channel's correction:
+  /// the offset along the channel's own direction and the turn about it). Empty when the effect has none.
+  std::function<std::vector<std::string>(const ModelSpec& before, const Effect&)> redundant;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
@@ -101,6 +105,9 @@ std::map<std::string, double> DefaultEffectParameters(const ModelSpec& spec, con
 /// The search and fit range of parameter `parameter` of `effect` around its value, on `before` (the
 /// model the effect is applied to).
 EffectParameterRange EffectRange(const ModelSpec& before, const Effect& effect, const std::string& parameter);
+
+/// EffectDefinition::redundant of the effect's entry (empty when it has none).
+std::vector<std::string> RedundantEffectParameters(const ModelSpec& before, const Effect& effect);
 
 /// The catalogue entry's sentence for a fitted effect.
 std::string ExplainEffect(const Effect& effect);

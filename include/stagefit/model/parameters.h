@@ -50,7 +50,9 @@ std::vector<ParameterInfo> ListParameters(const ModelSpec& spec);
 std::vector<ParameterInfo> MatchParameters(const ModelSpec& spec, const std::vector<std::string>& patterns);
 
 /// The patterns of every parameter of the model's effects ("payload@hexapod.*", ...), leaving out
-/// those an experiment sets rather than a fit (a spin rate: EffectDefinition::set_by_experiment).
+/// those an experiment sets rather than a fit (a spin rate: EffectDefinition::set_by_experiment) and
+/// those the others make redundant (a channel's offset along and turn about its own direction:
+/// EffectDefinition::redundant); an effect with such parameters is listed by its others' names.
 std::vector<std::string> EffectParameterPatterns(const ModelSpec& spec);
 
 /// `patterns` followed by EffectParameterPatterns(spec): what fit, diagnose and loop free by default
