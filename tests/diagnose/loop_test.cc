@@ -309,6 +309,55 @@ TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
   EXPECT_EQ(kept_history.size(), 1u);
 }
 
+// A loss factor in the wrong joint (seed 1 of eval_loop's kind of case, 5-150 Hz, here 150 frequencies:
+// a loss factor of 0.062 in rz, put in ty and fitted there with the stiffnesses) is moved to rz, where
+// the model comes to the error of the effect fitted in rz from the start; in rz it stays. (The
+// catalogue's one loss factor for the six DoF leaves that at 1.7x the floor.)
+TEST(RelocateEffects, MovesAnEffectToWhereTheDataPutIt) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions o;
+  o.fmin_hz = 5.0;
+  o.fmax_hz = 150.0;
+  o.num_frequencies = 150;
+  o.noise_min = 0.01;
+  o.noise_max = 0.03;
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1, o);
+  ASSERT_EQ(c.effects.size(), 1u);
+  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "structural-damping@rz");
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const double floor = comparison.CalcNoiseFloor().floor;
+  EffectFitOptions eo;
+  eo.max_iterations = 100;
+  eo.probe_basins = true;
+  eo.initial_trust_region_radius = 1.0;
+  LoopOptions options;
+  options.diagnose.effects = {"payload"};  // replaced by the effect sought again
+  options.diagnose.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  auto fitted_at = [&](const std::string& place) {
+    return FitEffects(nominal, comparison, {model::ParseEffect("structural-damping@" + place, nominal)}, {"*.k.*"}, eo).spec;
+  };
+  // In rz: nothing moves.
+  model::ModelSpec right = fitted_at("rz");
+  const double right_error = comparison.Error(right);
+  std::vector<LoopStep> right_history = {{"fitted", "", right_error}};
+  EXPECT_TRUE(RelocateEffects(nominal, c.measurement, comparison, options, options.diagnose, &right, &right_history).empty());
+  EXPECT_EQ(right_history.size(), 1u);
+  // In ty: moved to rz.
+  model::ModelSpec current = fitted_at("ty");
+  std::vector<LoopStep> history = {{"fitted", "", comparison.Error(current)}};
+  const auto moved = RelocateEffects(nominal, c.measurement, comparison, options, options.diagnose, &current, &history);
+  std::cout << "in rz " << right_error / floor << "x the floor; in ty " << history.front().error / floor << "x, moved "
+            << history.back().error / floor << "x\n";
+  EXPECT_GT(history.front().error, 3 * right_error);
+  ASSERT_EQ(moved, std::vector<std::string>{"structural-damping@ty -> structural-damping@rz"});
+  ASSERT_EQ(current.effects.size(), 1u);
+  EXPECT_EQ(current.effects[0].location, "rz");
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[1].action, "move structural-damping@ty to rz");
+  EXPECT_EQ(history[1].error, comparison.Error(current));
+  EXPECT_LT(history[1].error, 1.01 * right_error);
+}
+
 // A cable between the granite and the hexapod (outside the catalogue; eval_loop's seed 5023): a loss
 // factor in the hexapod lowers the error, but the model stays clearly above the floor, so the loop
 // does not confirm it and says where the error is. (Only loss factors are tried, in one round, for time;

@@ -113,6 +113,22 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
                                              const LoopOptions& options, const model::Effect& newest,
                                              model::ModelSpec* current, std::vector<LoopStep>* history);
 
+/// The loop's step after its rounds when it ends above LoopOptions::rounds_above_times_floor with
+/// effects it added: each of them in turn is taken out and sought again at every location of its kind,
+/// by a diagnosis of that effect alone (`diagnose` with DiagnoseOptions::effects set to it) on the
+/// model without it, which fits the model's and the other effects' parameters with each candidate. A
+/// round judges its candidates beside the effects of the rounds before; one of those in the wrong place
+/// makes a later round add another to make up for it (seed 21020: a loss factor put in ty that is in
+/// rz). Where the diagnosis names another location, and the model with the effect there, refitted from
+/// the diagnosis' state and from the model as given (the better kept), lowers `history`'s last error by
+/// more than 1 %, the move is taken: `current` becomes that model (the moved effect last) and a "move"
+/// step is appended. Effects with one location (a delay) and channel corrections (located by the
+/// channels' own directions, not by the model) are not moved. Returns "<effect>@<from> -> <effect>@<to>".
+std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
+                                         const compare::Comparison& comparison, const LoopOptions& options,
+                                         const DiagnoseOptions& diagnose, model::ModelSpec* current,
+                                         std::vector<LoopStep>* history);
+
 /// The loop's last check at the noise floor: every effect the loop added that has a rigid limit
 /// (model::EffectDefinition::rigid_limit: an extra body -> a payload) is replaced by it and the model
 /// refitted from `current`'s state and from the model as given (the better kept); where that error is
