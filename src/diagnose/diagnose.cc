@@ -101,6 +101,10 @@ std::string ModeSentence(const compare::Comparison& comparison, const compare::M
 // The leaders are fitted to convergence with short ones.
 constexpr double kPolishTrustRegionRadius = 1.0;
 
+/// A leader this close to the noise floor of the grid it is fitted on gets no second start: a
+/// correct model's error lies within 1.05x of the floor (its standard deviation is about 1 % of it).
+constexpr double kSecondStartSkipTimesFloor = 1.05;
+
 /// The rigid-body consistency of the measurement's raw channels (summary fields), when it has them.
 void AddRigidConsistency(const measurement::FrfData& data, const compare::Comparison& comparison,
                          const model::ModelSpec& spec, DiagnoseSummary* summary) {
@@ -657,8 +661,20 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // A second start for the leaders: the model's parameters as given, with the effect as fitted. The
   // baseline's stiffnesses have bent to mimic the missing effect (a delay's phase, a payload's mass)
   // and can hold the fit with the effect in a local minimum the model as given is not in.
+  // A leader already within kSecondStartSkipTimesFloor of the search grid's noise floor is not
+  // started again: a second start could lower its error by noise only.
   {
     std::vector<Try> leaders = Continue(unique, options.num_second_starts);
+    const compare::NoiseFloor search_floor = search.CalcNoiseFloor();
+    size_t at_floor = 0;
+    if (search_floor.known && search_floor.floor > 0) {
+      std::vector<Try> kept;
+      for (size_t i = 0; i < leaders.size(); ++i) {
+        if (!(unique[i].error_after <= kSecondStartSkipTimesFloor * search_floor.floor)) kept.push_back(leaders[i]);
+      }
+      at_floor = leaders.size() - kept.size();
+      leaders = kept;
+    }
     for (size_t i = 0, n = leaders.size(); i < n; ++i) {
       leaders[i].start = as_given;
       // A mass's height enters its rotary inertia as z^2: a fit from the wrong side of the host's centre
@@ -670,8 +686,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         leaders.back().effect.parameters["z"] = -e.parameters.at("z");
       }
     }
-    say(Format("second start for the best %.0f", static_cast<double>(leaders.size())));
-    MergeBetter(run(leaders, options.refine_iterations, true, true, search, search_scale), &unique);
+    say(Format("second start for the best %.0f", static_cast<double>(leaders.size())) +
+        (at_floor ? Format(" (%.0f at the noise floor go without)", static_cast<double>(at_floor)) : ""));
+    if (!leaders.empty()) MergeBetter(run(leaders, options.refine_iterations, true, true, search, search_scale), &unique);
   }
   // The leaders fitted on to their optimum: the budgets above stop a slow fit short (a turned sensor's
   // correction with the stiffnesses: 0.109 after the rounds above, 0.038 converged, floor 0.036).

@@ -427,8 +427,14 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.effects_added = EffectTexts(current.effects);
   }
   if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
-    for (const std::string& change : RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history)) {
-      say("moved " + change + ": error " + std::to_string(summary.history.back().error));
+    const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
+    for (const std::string& change : moved) say("moved " + change);
+    if (!moved.empty()) {
+      say("after the moves: error " + std::to_string(summary.history.back().error));
+      // An effect added to make up for the misplaced one may not be needed beside it in its place.
+      for (const std::string& key : DropUnneededEffects(spec, comparison, options, current.effects.back(), &current, &summary.history)) {
+        say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
+      }
     }
     summary.effects_added = EffectTexts(current.effects);
   }

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <iostream>
@@ -51,7 +52,13 @@ TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
   synthetic::HiddenEffectOptions options;
   options.num_effects = 0;
   auto c = synthetic::MakeHiddenEffectCase(nominal, 7, options);
-  auto summary = Diagnose(nominal, c.measurement, QuietOptions());
+  DiagnoseOptions quiet = QuietOptions();
+  std::vector<std::string> lines;
+  quiet.progress = [&](const std::string& line) {
+    std::cout << line << std::endl;
+    lines.push_back(line);
+  };
+  auto summary = Diagnose(nominal, c.measurement, quiet);
   std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
   const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
   EXPECT_LT(summary.error_baseline, 1.05 * floor);
@@ -60,6 +67,10 @@ TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
   ASSERT_TRUE(summary.noise_floor.known);
   EXPECT_NEAR(summary.noise_floor.floor / floor, 1.0, 0.05);
   EXPECT_EQ(summary.verdict.rfind("Done:", 0), 0u) << summary.verdict;
+  // The leaders are at the floor already: none gets a second start (kSecondStartSkipTimesFloor).
+  EXPECT_EQ(std::count_if(lines.begin(), lines.end(),
+                          [](const std::string& l) { return l.find("second start for the best 0 (3 at the noise floor go without)") != std::string::npos; }),
+            1);
 }
 
 // Physically absurd fits are named as such: a payload heavier than the whole stack, an offset at the

@@ -122,8 +122,9 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
 /// rz). Where the diagnosis names another location, and the model with the effect there, refitted from
 /// the diagnosis' state and from the model as given (the better kept), lowers `history`'s last error by
 /// more than 1 %, the move is taken: `current` becomes that model (the moved effect last) and a "move"
-/// step is appended. Effects with one location (a delay) and channel corrections (located by the
-/// channels' own directions, not by the model) are not moved. Returns "<effect>@<from> -> <effect>@<to>".
+/// step is appended (the loop then checks the other added effects with DropUnneededEffects). Effects
+/// with one location (a delay) and channel corrections (located by the channels' own directions, not by
+/// the model) are not moved. Returns "<effect>@<from> -> <effect>@<to>".
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,
