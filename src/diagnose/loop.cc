@@ -283,6 +283,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     model::SetEffects(without, others);
     DiagnoseOptions only = diagnose;
     only.effects = {effect.name};
+    if (diagnose.progress) diagnose.progress("seek " + key + " again at every location of its kind");
     DiagnoseSummary diagnosis;
     try {
       diagnosis = Diagnose(without, measurement, only);
