@@ -21,6 +21,9 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
+/// "<effect>@<location>": how the loop names an effect in its history and its lists.
+std::string Key(const model::Effect& e) { return e.name + "@" + e.location; }
+
 double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
@@ -193,11 +196,13 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
                                              const LoopOptions& options, const model::Effect& newest,
                                              model::ModelSpec* current, std::vector<LoopStep>* history) {
   std::vector<std::string> dropped;
+  // Taken before `current` changes: the loop passes `newest` as an element of current->effects.
+  const std::string newest_key = Key(newest);
   const double n = comparison.num_residuals();
   const size_t first = as_given.effects.size();  // the effects of the model as given are the user's
   for (size_t k = first; k < current->effects.size() && current->effects.size() > first + 1;) {
     const model::Effect effect = current->effects[k];
-    if (effect.name == newest.name && effect.location == newest.location) {
+    if (Key(effect) == newest_key) {
       ++k;
       continue;
     }
@@ -213,7 +218,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
       ++k;
       continue;
     }
-    const std::string key = effect.name + "@" + effect.location;
+    const std::string key = Key(effect);
     history->push_back({"drop " + key + " (not needed)", "", trial_error});
     dropped.push_back(key);
     *current = trial;
@@ -229,7 +234,7 @@ std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_give
     others.erase(others.begin() + static_cast<long>(k));
     model::SetEffects(without, others);
     const std::string why = ImplausibleBecause(without, final.effects[k], band_low_hz);
-    if (!why.empty()) found.push_back(final.effects[k].name + "@" + final.effects[k].location + ": " + why);
+    if (!why.empty()) found.push_back(Key(final.effects[k]) + ": " + why);
   }
   return found;
 }
@@ -253,7 +258,7 @@ std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const
     // limit in the effect's place, and the model as given.
     const auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, with_limit);
     if (!(trial_error <= (1 + kRigidLimitTolerance) * history->back().error)) continue;
-    const std::string from = effect.name + "@" + effect.location, to = with_limit[k].name + "@" + with_limit[k].location;
+    const std::string from = Key(effect), to = Key(with_limit[k]);
     history->push_back({"take " + to + " for " + from + " (its rigid limit)", trial.effects[k].ToString(), trial_error});
     taken.push_back(from + " -> " + to);
     *current = trial;
@@ -267,14 +272,14 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
                                          std::vector<LoopStep>* history) {
   std::vector<std::string> moved;
   std::vector<std::string> keys;  // the effects the loop added, as they are now
-  for (size_t k = as_given.effects.size(); k < current->effects.size(); ++k) {
-    keys.push_back(current->effects[k].name + "@" + current->effects[k].location);
-  }
+  for (size_t k = as_given.effects.size(); k < current->effects.size(); ++k) keys.push_back(Key(current->effects[k]));
   for (const std::string& key : keys) {
-    size_t k = as_given.effects.size();
-    while (k < current->effects.size() && current->effects[k].name + "@" + current->effects[k].location != key) ++k;
-    if (k == current->effects.size()) continue;
-    const model::Effect effect = current->effects[k];
+    // Its place now: a move before puts the moved effect last.
+    const auto it = std::find_if(current->effects.begin() + static_cast<long>(as_given.effects.size()), current->effects.end(),
+                                 [&](const model::Effect& e) { return Key(e) == key; });
+    if (it == current->effects.end()) continue;
+    const size_t k = static_cast<size_t>(it - current->effects.begin());
+    const model::Effect effect = *it;
     const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
     if (definition.measured_side_only || model::EffectLocations(*current, effect.name).size() < 2) continue;
     std::vector<model::Effect> others = current->effects;
@@ -303,7 +308,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     if (!(trial_error < 0.99 * history->back().error)) continue;
     const model::Effect& to = trial.effects.back();
     history->push_back({"move " + key + " to " + to.location, to.ToString(), trial_error});
-    moved.push_back(key + " -> " + to.name + "@" + to.location);
+    moved.push_back(key + " -> " + Key(to));
     *current = trial;
   }
   return moved;
@@ -358,6 +363,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   }
   // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
   std::set<std::string> dropped;
+  // Every effect the loop added before `newest` must still earn its place (DropUnneededEffects).
+  auto drop_unneeded = [&](const model::Effect& newest) {
+    for (const std::string& key : DropUnneededEffects(spec, comparison, options, newest, &current, &summary.history)) {
+      dropped.insert(key);
+      say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
+    }
+  };
   summary.stop_reason = "the round limit";
   for (int round = 0; round < options.max_rounds; ++round) {
     if (done(summary.history.back().error)) {
@@ -389,7 +401,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       break;
     }
     const Candidate& best = diagnosis.candidates[0];
-    if (dropped.count(best.effect.name + "@" + best.effect.location)) {
+    if (dropped.count(Key(best.effect))) {
       summary.stop_reason = "the best effect was dropped before as not needed";
       break;
     }
@@ -401,7 +413,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       summary.stop_reason = "the best effect does not lower the error of the model the loop holds";
       break;
     }
-    summary.history.push_back({"add " + best.effect.name + "@" + best.effect.location, best.with, with_error});
+    summary.history.push_back({"add " + Key(best.effect), best.with, with_error});
     // Refit from two starts, the better kept: (a) the candidate's state, the model's parameters as the
     // diagnosis left them; (b) the model as given with every effect added so far and the new one, all
     // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
@@ -420,10 +432,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       say("refit from the model as given: error " + std::to_string(restart_error));
     }
     current = with;
-    for (const std::string& key : DropUnneededEffects(spec, comparison, options, best.effect, &current, &summary.history)) {
-      dropped.insert(key);
-      say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
-    }
+    drop_unneeded(best.effect);
     added = current.effects;
     summary.effects_added = EffectTexts(current.effects);
   }
@@ -433,9 +442,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     if (!moved.empty()) {
       say("after the moves: error " + std::to_string(summary.history.back().error));
       // An effect added to make up for the misplaced one may not be needed beside it in its place.
-      for (const std::string& key : DropUnneededEffects(spec, comparison, options, current.effects.back(), &current, &summary.history)) {
-        say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
-      }
+      drop_unneeded(current.effects.back());
     }
     summary.effects_added = EffectTexts(current.effects);
   }
@@ -443,9 +450,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   if (options.turned_channel_deg > 0 && AddTurnedChannel(measurement, comparison, options, &current, &summary)) {
     // An effect of an earlier round may have stood in for the turn (seed 19010: a4x turned 15 degrees,
     // first taken for a3x with its dx at the 5 cm bound; with a4x corrected the a3x one is not needed).
-    for (const std::string& key : DropUnneededEffects(spec, comparison, options, current.effects.back(), &current, &summary.history)) {
-      say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
-    }
+    drop_unneeded(current.effects.back());
     summary.effects_added = EffectTexts(current.effects);
   }
   if (at_floor(summary.history.back().error)) {
