@@ -128,4 +128,8 @@ void ParallelFor(int num_tasks, const std::function<void(int task, int worker)>&
   for (int t = 0; t < num_tasks; ++t) task(t, 0);
 }
 
+void RunConcurrently(const std::vector<std::function<void()>>& jobs) {
+  ParallelFor(static_cast<int>(jobs.size()), [&](int t, int) { jobs[static_cast<size_t>(t)](); });
+}
+
 }  // namespace stagefit

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
@@ -51,14 +52,20 @@ std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_
                                                      const std::vector<model::Effect>& effects) {
   model::ModelSpec trial = current;
   double trial_error = std::numeric_limits<double>::infinity();
-  try {
-    model::SetEffects(trial, effects);
-    fit::FitModel(trial, comparison, model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)),
-                  options.fit);
-    trial_error = comparison.Error(trial);
-  } catch (const std::exception&) {
-  }
-  if (auto restart = FitFromAsGiven(as_given, comparison, effects, options)) {
+  std::optional<EffectsFit> restart;
+  RunConcurrently({
+      [&] {
+        try {
+          model::SetEffects(trial, effects);
+          fit::FitModel(trial, comparison,
+                        model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)), options.fit);
+          trial_error = comparison.Error(trial);
+        } catch (const std::exception&) {
+        }
+      },
+      [&] { restart = FitFromAsGiven(as_given, comparison, effects, options); },
+  });
+  if (restart) {
     if (const double e = comparison.Error(restart->spec); e < trial_error) {
       trial = restart->spec;
       trial_error = e;
@@ -329,14 +336,17 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 
   model::ModelSpec current = spec;
   summary.history.push_back({"as given", "", comparison.Error(current)});
-  // Fits the model's parameters of `model` (a copy is kept when the fit makes it worse).
-  auto refit = [&](model::ModelSpec* model, const std::string& action) {
-    model::ModelSpec trial = *model;
-    const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
+  // The model's parameters of `trial` and its effects' fitted (FitModel).
+  auto fit_parameters = [&](model::ModelSpec* trial) {
+    fit::FitModel(*trial, comparison, model::MatchParameters(*trial, model::WithEffectParameters(options.diagnose.params, *trial)),
+                  options.fit);
+  };
+  // `fitted` (`*model` with fit_parameters applied) taken for `*model` when it lowers the error; the
+  // step recorded as `action`.
+  auto take_refit = [&](model::ModelSpec* model, const model::ModelSpec& fitted, const std::string& action) {
     const double before = comparison.Error(*model);
-    fit::FitModel(trial, comparison, params, options.fit);
-    const double after = comparison.Error(trial);
-    if (after < before) *model = trial;
+    const double after = comparison.Error(fitted);
+    if (after < before) *model = fitted;
     summary.history.push_back({action, "", std::min(after, before)});
     char line[160];
     std::snprintf(line, sizeof line, "%s: error %.5f", action.c_str(), summary.history.back().error);
@@ -421,9 +431,11 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     // in that basin (1.9x the floor), from (b) it reaches the floor.
     std::vector<model::Effect> all = added;
     all.push_back(best.effect);
-    std::optional<EffectsFit> restart = FitFromAsGiven(spec, comparison, all, options);
+    std::optional<EffectsFit> restart;
+    model::ModelSpec refitted = with;
+    RunConcurrently({[&] { fit_parameters(&refitted); }, [&] { restart = FitFromAsGiven(spec, comparison, all, options); }});
     const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
-    refit(&with, "refit");  // the model's and every effect's parameters
+    take_refit(&with, refitted, "refit");  // the model's and every effect's parameters
     added = with.effects;
     if (restart && restart_error < summary.history.back().error) {
       summary.history.back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <functional>
 #include <stdexcept>
 #include <vector>
 
@@ -62,6 +63,33 @@ TEST(ParallelFor, NestedCallsRunOnTheirCallingThread) {
     });
   });
   EXPECT_EQ(inner.load(), 6);
+}
+
+TEST(RunConcurrently, RunsEachJobOnceAndItsInnerLoopsWhole) {
+  for (const int threads : {1, 2, 4}) {
+    const ThreadCountGuard guard(threads);
+    std::vector<std::atomic<int>> runs(3);
+    std::atomic<int> inner{0};
+    std::vector<std::function<void()>> jobs;
+    for (int j = 0; j < 3; ++j) {
+      jobs.push_back([&, j] {
+        ++runs[j];
+        ParallelFor(5, [&](int, int) { ++inner; });  // on the job's thread alone when jobs run in parallel
+      });
+    }
+    RunConcurrently(jobs);
+    for (int j = 0; j < 3; ++j) EXPECT_EQ(runs[j].load(), 1) << "job " << j << ", " << threads << " threads";
+    EXPECT_EQ(inner.load(), 15) << threads << " threads";
+  }
+  RunConcurrently({});  // nothing to run
+}
+
+TEST(RunConcurrently, RethrowsAJobsExceptionAfterTheOthersFinish) {
+  const ThreadCountGuard guard(2);
+  std::atomic<bool> other_done{false};
+  EXPECT_THROW(RunConcurrently({[] { throw std::runtime_error("first job"); }, [&] { other_done = true; }}),
+               std::runtime_error);
+  EXPECT_TRUE(other_done.load());
 }
 
 }  // namespace

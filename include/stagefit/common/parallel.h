@@ -6,6 +6,7 @@
 // number of threads: each task computes the same numbers whichever thread runs it.
 
 #include <functional>
+#include <vector>
 
 namespace stagefit {
 
@@ -22,6 +23,12 @@ void SetMaxThreads(int threads);
 /// pool, it runs every task on the calling thread as worker 0. Returns when all are done. An
 /// exception thrown by a task is rethrown here (the first one, after every thread has finished).
 void ParallelFor(int num_tasks, const std::function<void(int task, int worker)>& task);
+
+/// Runs each of `jobs` once, concurrently on the pool's threads (ParallelFor over them): for
+/// independent fits, each of which spreads its own FRF evaluations well over fewer than all cores.
+/// Inside a job, a ParallelFor runs on the job's thread alone. The first exception a job throws is
+/// rethrown after every job has finished.
+void RunConcurrently(const std::vector<std::function<void()>>& jobs);
 
 /// The number of workers ParallelFor(num_tasks, ...) uses.
 int WorkersFor(int num_tasks);
