@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/model/model_spec.h"
+#include "stagefit/model/parameters.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 namespace stagefit::diagnose {
@@ -215,6 +217,42 @@ TEST(Diagnose, FindsAnExtraBodyTheBaselineStiffnessesHid) {
   EXPECT_GT(run.summary.error_baseline, 10 * run.floor);
   EXPECT_NEAR(best.effect.parameters.at("mass"), body.mass_kg, 0.1 * body.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), body.com_W.z() - host.com_W.z(), 0.01);
+}
+
+// The rocking scan of an extra-body candidate (ScanRockingHz) finds the rocking frequency of a body the
+// independent generator hid (seed 1009: its rocking stiffness 1.5x its translation's, per inertia),
+// from a candidate whose rocking is 40 % below it and whose other parameters and the model's are the
+// truth's; a candidate already there gets no other start, and another effect is not scanned.
+TEST(ScanRockingHz, FindsTheRockingFrequencyOfAHiddenBody) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const synthetic::HiddenEffectCase c = synthetic::MakeHiddenEffectCase(nominal, 1009, {});
+  ASSERT_EQ(c.effects.size(), 1u);
+  ASSERT_EQ(c.effects[0].name, "extra-body");
+  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_body")];
+  const auto& host = c.truth.bodies[model::FindBody(c.truth, c.effects[0].location)];
+  const auto& joint = c.truth.joints[model::FindJoint(c.truth, "hidden_body")];
+  const double inertia = body.mass_kg * std::pow(model::kExtraBodyRadiusOfGyration, 2);
+  ASSERT_NEAR(body.inertia_com_W(0, 0), inertia, 1e-12 * inertia);  // the catalogue's body, as the generator's
+  const double rocking_hz = std::sqrt(joint.stiffness[3] / inertia) / (2 * M_PI);
+
+  DiagnoseSummary summary;
+  summary.baseline = nominal;
+  Candidate candidate;
+  for (const auto& p : model::ListParameters(nominal)) candidate.model_parameters[p.name] = model::GetParameter(c.truth, p);
+  candidate.effect = {"extra-body", c.effects[0].location,
+                      {{"mass", body.mass_kg},
+                       {"k", joint.stiffness[0]},
+                       {"kr", inertia * std::pow(2 * M_PI * 0.6 * rocking_hz, 2)},
+                       {"z", body.com_W.z() - host.com_W.z()}}};
+  const compare::Comparison comparison = compare::Comparison::Create(nominal, c.measurement);
+  const std::optional<double> hz = ScanRockingHz(comparison, summary, candidate);
+  ASSERT_TRUE(hz.has_value());
+  EXPECT_NEAR(*hz / rocking_hz, 1.0, 2 * kModeScanStep) << *hz << " Hz for " << rocking_hz << " Hz";
+
+  candidate.effect.parameters["kr"] = inertia * std::pow(2 * M_PI * *hz, 2);
+  EXPECT_FALSE(ScanRockingHz(comparison, summary, candidate).has_value());
+  candidate.effect = {"payload", c.effects[0].location, {{"mass", body.mass_kg}, {"x", 0.0}, {"y", 0.0}, {"z", 0.05}}};
+  EXPECT_FALSE(ScanRockingHz(comparison, summary, candidate).has_value());
 }
 
 // A vertical accelerometer turned by 17 degrees (seed 1023, visibility 18.5 noise standard deviations),

@@ -221,6 +221,25 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
 /// The baseline of `summary` with `candidate`'s effect applied and the model parameters fitted with it.
 model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate& candidate);
 
+/// Relative step of ScanBandHz's grid: a lightly damped mode's dip in the error is a few % wide
+/// (23005: 3 %, a body with 2 % damping).
+inline constexpr double kModeScanStep = 0.01;
+
+/// The frequency, on a log grid of step kModeScanStep across `comparison`'s band, at which the error of
+/// model_at(hz) is lowest; nullopt when no model of the grid could be evaluated. For a parameter that
+/// sets a lightly damped mode, whose basin is a few % wide: a fit started outside it puts the mode
+/// where it mimics something else. model_at is called from several threads.
+std::optional<double> ScanBandHz(const compare::Comparison& comparison,
+                                 const std::function<model::ModelSpec(double hz)>& model_at);
+
+/// For an extra-body `candidate`: ScanBandHz over its rocking frequency sqrt(kr / (mass r^2)) (r =
+/// kExtraBodyRadiusOfGyration), its other parameters and the model's held as fitted
+/// (ApplyCandidate(summary, candidate)); nullopt for another effect, or when the best is within two
+/// steps of the candidate's own rocking frequency. Diagnose() starts each extra-body leader's last fit
+/// there too.
+std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const DiagnoseSummary& summary,
+                                    const Candidate& candidate);
+
 /// Fits `effect` (parameters as starting values) together with `params` of `base`, returns the fit
 /// summary and the fitted effect; `spec_out` (optional) receives the model with the effect applied.
 struct EffectFit {
