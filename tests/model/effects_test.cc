@@ -81,16 +81,18 @@ TEST(Effects, ExtraBodyAddsSixDofWithTheGivenLocalMode) {
   EXPECT_GE(near, 2);  // the local mode in x and y (granite barely moves at 100 Hz)
 }
 
-// An extra body's rigid limit is a payload of its mass at its height: with its joint 1e6x stiffer than
-// the stack's, the stack's modes below 1 kHz are those of the payload model, but for the body's own
-// rotary inertia (mass x kExtraBodyRadiusOfGyration^2, 0.019 kg m^2 here) that the point-mass payload
-// lacks. A mode of the hexapod's translation (Dz, the body on its axis) agrees to 1e-6; one of its
-// rotation about axis a is lower by sqrt(I_a / (I_a + m r^2)), I_a the hexapod's inertia with the
-// payload (5 % at Rx, Ry, Rz); every other mode agrees to 1 % (the hexapod's Dx and Dy, coupled to its
-// rotations by the body's height, move by 0.56 %; the modes of the stages below it by less).
+// An extra body's rigid limit is a payload of its mass at its height: with its joint 1000x stiffer than
+// the stack's (its local modes above 18 kHz), the stack's modes below 1 kHz are those of the payload
+// model, but for the body's own rotary inertia (mass x kExtraBodyRadiusOfGyration^2, 0.019 kg m^2 here)
+// that the point-mass payload lacks: a mode of the hexapod's rotation about axis a is lower by
+// sqrt(I_a / (I_a + m r^2)), I_a the hexapod's inertia with the payload (5 % at Rx, Ry, Rz; to 0.2 %,
+// the ratio leaves out the coupling through the body's height); every other mode agrees to 0.1 %.
+// The joint is not made stiffer: at 1e13-1e14 N/m the eigenvalues of the 66-state model lose
+// accuracy (the hexapod's Dx mode, 102.16 Hz, came out at 102.09 Hz and 103.28 Hz), which a 1 %
+// tolerance had hidden on one machine and not on another.
 TEST(Effects, AnExtraBodyWithARigidJointIsItsRigidLimit) {
   const ModelSpec base = DefaultModelSpec();
-  const Effect body = ParseEffect("extra-body@hexapod:mass=7.4,k=1e14,kr=1e13,z=0.075", base);
+  const Effect body = ParseEffect("extra-body@hexapod:mass=7.4,k=1e11,kr=1e10,z=0.075", base);
   const auto& definition = FindEffectDefinition("extra-body");
   ASSERT_TRUE(definition.rigid_limit);
   const Effect limit = definition.rigid_limit(body);
@@ -107,10 +109,12 @@ TEST(Effects, AnExtraBodyWithARigidJointIsItsRigidLimit) {
   for (const auto& m : CalcModes(limit_model).modes) {
     if (m.frequency_hz > 1000) continue;
     const std::string dof = limit_model.dof_names()[m.dominant_dof];
-    double expected = m.frequency_hz, tolerance = 0.01;
-    if (dof == "hexapod.Dz") tolerance = 1e-6;
+    double expected = m.frequency_hz, tolerance = 1e-3;
     for (int a = 0; a < 3; ++a) {
-      if (dof == std::string("hexapod.R") + "xyz"[a]) expected *= std::sqrt(inertia(a, a) / (inertia(a, a) + own));
+      if (dof == std::string("hexapod.R") + "xyz"[a]) {
+        expected *= std::sqrt(inertia(a, a) / (inertia(a, a) + own));
+        tolerance = 2e-3;  // the ratio leaves out the rotation's coupling to translation through the height
+      }
     }
     double nearest = 1e300;
     for (const auto& b : body_modes) nearest = std::min(nearest, std::abs(b.frequency_hz / expected - 1));
