@@ -105,6 +105,18 @@ constexpr double kPolishTrustRegionRadius = 1.0;
 /// correct model's error lies within 1.05x of the floor (its standard deviation is about 1 % of it).
 constexpr double kSecondStartSkipTimesFloor = 1.05;
 
+/// `body` (an extra-body effect) with the joint stiffnesses that put its rocking modes,
+/// sqrt(kr / (mass r^2)) with r = kExtraBodyRadiusOfGyration, at `rocking_hz`, and with
+/// `translation_hz` its translation modes, sqrt(k / mass), too; its mass as it is.
+void SetExtraBodyRockingHz(model::Effect* body, double rocking_hz) {
+  const double inertia = body->parameters.at("mass") * std::pow(model::kExtraBodyRadiusOfGyration, 2);
+  body->parameters["kr"] = inertia * std::pow(2 * M_PI * rocking_hz, 2);
+}
+void SetExtraBodyModesHz(model::Effect* body, double translation_hz, double rocking_hz) {
+  body->parameters["k"] = body->parameters.at("mass") * std::pow(2 * M_PI * translation_hz, 2);
+  SetExtraBodyRockingHz(body, rocking_hz);
+}
+
 /// The rigid-body consistency of the measurement's raw channels (summary fields), when it has them.
 void AddRigidConsistency(const measurement::FrfData& data, const compare::Comparison& comparison,
                          const model::ModelSpec& spec, DiagnoseSummary* summary) {
@@ -552,9 +564,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       const model::Effect at_default = e;
       if (const auto hz = ScanBandHz(search, [&](double hz) {
             model::Effect body = at_default;
-            const double w = 2 * M_PI * hz;
-            body.parameters["k"] = body.parameters["mass"] * w * w;
-            body.parameters["kr"] = body.parameters["mass"] * std::pow(model::kExtraBodyRadiusOfGyration, 2) * w * w;
+            SetExtraBodyModesHz(&body, hz, hz);
             model::ModelSpec with = summary.baseline;
             model::ApplyEffect(with, body);
             return with;
@@ -562,10 +572,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         starts_hz.push_back(*hz);
       }
       for (double f : starts_hz) {
-        const double w = 2 * M_PI * f;
-        e.parameters["k"] = e.parameters["mass"] * w * w;
-        // Its rocking modes at the same frequency.
-        e.parameters["kr"] = e.parameters["mass"] * std::pow(model::kExtraBodyRadiusOfGyration, 2) * w * w;
+        SetExtraBodyModesHz(&e, f, f);  // its rocking modes at the same frequency
         add_try(e);
       }
     } else {
@@ -733,22 +740,18 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         } catch (const std::exception&) {
           // A leader whose model cannot be evaluated gets no such start.
         }
-        const double inertia = leaders[i].effect.parameters.at("mass") * std::pow(model::kExtraBodyRadiusOfGyration, 2);
-        if (hz) {
+        auto add_rocking_start = [&](double rocking_hz) {
           Try rocking = leaders[i];
-          rocking.effect.parameters["kr"] = inertia * std::pow(2 * M_PI * *hz, 2);
+          SetExtraBodyRockingHz(&rocking.effect, rocking_hz);
           leaders.push_back(rocking);
-        }
+        };
+        if (hz) add_rocking_start(*hz);
         // And from the best rocking frequency of a scan across the band, the leader's other parameters
         // as fitted: the rocking modes' basin is a few % wide. 27007 (a 4 kg body at 72 Hz, rocking at
         // 88 Hz): fits started at 56-80 Hz ended at 56-81 Hz (1.30-1.40x the floor), from 88-120 Hz at
         // 88 Hz (1.03-1.06x); the scan from the 56 Hz fit has its minimum at 88 Hz. 23005 (rocking at
         // 116 Hz): only a start at 120 Hz reached it; the scan's minimum is at 116.5 Hz, 3 % wide.
-        if (const auto scanned = ScanRockingHz(search, summary, unique[i])) {
-          Try rocking = leaders[i];
-          rocking.effect.parameters["kr"] = inertia * std::pow(2 * M_PI * *scanned, 2);
-          leaders.push_back(rocking);
-        }
+        if (const auto scanned = ScanRockingHz(search, summary, unique[i])) add_rocking_start(*scanned);
       }
       leaders.push_back(leaders[i]);
       leaders.back().start = as_given;
@@ -979,11 +982,10 @@ std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const
                                     const Candidate& candidate) {
   const model::Effect& e = candidate.effect;
   if (e.name != "extra-body") return std::nullopt;
-  const double inertia = e.parameters.at("mass") * std::pow(model::kExtraBodyRadiusOfGyration, 2);
-  const double own_hz = std::sqrt(e.parameters.at("kr") / inertia) / (2 * M_PI);
+  const double own_hz = model::FindEffectDefinition(e.name).local_modes_hz(e)[1];
   const std::optional<double> best = ScanBandHz(comparison, [&](double hz) {
     Candidate c = candidate;
-    c.effect.parameters["kr"] = inertia * std::pow(2 * M_PI * hz, 2);
+    SetExtraBodyRockingHz(&c.effect, hz);
     return ApplyCandidate(summary, c);
   });
   if (!best || std::abs(*best / own_hz - 1) <= 2 * kModeScanStep) return std::nullopt;

@@ -29,6 +29,12 @@ double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
 
+/// `spec`'s parameters of LoopOptions::diagnose.params and its effects' fitted from where they are (FitModel).
+void FitParametersAndEffects(model::ModelSpec* spec, const compare::Comparison& comparison, const LoopOptions& options) {
+  fit::FitModel(*spec, comparison, model::MatchParameters(*spec, model::WithEffectParameters(options.diagnose.params, *spec)),
+                options.fit);
+}
+
 /// The model as given (its base) with `effects`, all their parameters fitted together with the model's
 /// (diagnose::FitEffects); nullopt when the fit fails.
 std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
@@ -57,8 +63,7 @@ std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_
       [&] {
         try {
           model::SetEffects(trial, effects);
-          fit::FitModel(trial, comparison,
-                        model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial)), options.fit);
+          FitParametersAndEffects(&trial, comparison, options);
           trial_error = comparison.Error(trial);
         } catch (const std::exception&) {
         }
@@ -336,13 +341,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 
   model::ModelSpec current = spec;
   summary.history.push_back({"as given", "", comparison.Error(current)});
-  // The model's parameters of `trial` and its effects' fitted (FitModel).
-  auto fit_parameters = [&](model::ModelSpec* trial) {
-    fit::FitModel(*trial, comparison, model::MatchParameters(*trial, model::WithEffectParameters(options.diagnose.params, *trial)),
-                  options.fit);
-  };
-  // `fitted` (`*model` with fit_parameters applied) taken for `*model` when it lowers the error; the
-  // step recorded as `action`.
+  // `fitted` (`*model` with FitParametersAndEffects applied) taken for `*model` when it lowers the
+  // error; the step recorded as `action`.
   auto take_refit = [&](model::ModelSpec* model, const model::ModelSpec& fitted, const std::string& action) {
     const double before = comparison.Error(*model);
     const double after = comparison.Error(fitted);
@@ -433,7 +433,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     all.push_back(best.effect);
     std::optional<EffectsFit> restart;
     model::ModelSpec refitted = with;
-    RunConcurrently({[&] { fit_parameters(&refitted); }, [&] { restart = FitFromAsGiven(spec, comparison, all, options); }});
+    RunConcurrently({[&] { FitParametersAndEffects(&refitted, comparison, options); },
+                     [&] { restart = FitFromAsGiven(spec, comparison, all, options); }});
     const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
     take_refit(&with, refitted, "refit");  // the model's and every effect's parameters
     added = with.effects;
