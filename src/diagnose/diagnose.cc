@@ -495,6 +495,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   std::vector<double> extra_body_start_hz = {40.0, 70.0, 120.0, 200.0, 320.0};
   if (const auto hz = WorstBandCentreHz(comparison, summary.baseline)) extra_body_start_hz.push_back(*hz);
   std::vector<Try> tries;
+  std::vector<Try> scanned_servos;  // refined without screening (ScanServoStiffness)
   auto add_try = [&](const model::Effect& e) {
     tries.push_back({e, {}, {}});
     if (model::FindEffectDefinition(e.name).adds_mass) {
@@ -574,6 +575,18 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       for (double f : starts_hz) {
         SetExtraBodyModesHz(&e, f, f);  // its rocking modes at the same frequency
         add_try(e);
+      }
+    } else if (e.name == "servo-stiffness") {
+      add_try(e);
+      // Also from the k of a scan on the model as given, refined whatever its screening: 29009 (ty.Dy
+      // a spring of 3.2e8 N/m, 150 Hz band) was screened from the default 2.0e8 at 0.213 against the
+      // baseline's 0.058 (four iterations, its mode in the band) and never refined; its 30-iteration
+      // fit from there stops at 5.6e7 (0.111). The scan's minimum is at 3.1e8, and the fit from there
+      // reaches the noise floor (0.0387, floor 0.0387).
+      if (const auto k = ScanServoStiffness(search, spec_as_given, e)) {
+        model::Effect scanned = e;
+        scanned.parameters["k"] = *k;
+        scanned_servos.push_back({scanned, as_given, {}});
       }
     } else {
       add_try(e);
@@ -679,8 +692,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // effect takes at most kMaxRefinedPerEffect of the places: the 22 channels' sensor-geometry
   // corrections, each a little better than the baseline, filled the ten and left out a joint offset in
   // the hexapod that was the truth (seed 1002).
-  const std::vector<Try> refine = Continue(unique, options.num_refined, kMaxRefinedPerEffect);
-  say(Format("refining the best %.0f", static_cast<double>(refine.size())));
+  std::vector<Try> refine = Continue(unique, options.num_refined, kMaxRefinedPerEffect);
+  say(Format("refining the best %.0f", static_cast<double>(refine.size())) +
+      (scanned_servos.empty() ? "" : Format(" and %.0f servo stiffnesses from their scans", static_cast<double>(scanned_servos.size()))));
+  refine.insert(refine.end(), scanned_servos.begin(), scanned_servos.end());
   MergeBetter(run(refine, options.refine_iterations, true, true, search, search_scale), &unique);
   // A second start for the leaders: the model's parameters as given, with the effect as fitted. The
   // baseline's stiffnesses have bent to mimic the missing effect (a delay's phase, a payload's mass)
@@ -958,12 +973,11 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
   return with;
 }
 
-std::optional<double> ScanBandHz(const compare::Comparison& comparison,
-                                 const std::function<model::ModelSpec(double hz)>& model_at) {
-  const Eigen::VectorXd& f = comparison.frequency_hz();
-  if (f.size() < 2 || !(f(0) > 0)) return std::nullopt;
+std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
+                                       const std::function<model::ModelSpec(double x)>& model_at) {
+  if (!(from > 0) || !(to >= from) || !(step > 0)) return std::nullopt;
   std::vector<double> grid;
-  for (double hz = f(0); hz <= f(f.size() - 1); hz *= 1 + kModeScanStep) grid.push_back(hz);
+  for (double x = from; x <= to; x *= 1 + step) grid.push_back(x);
   std::vector<double> errors(grid.size(), std::numeric_limits<double>::infinity());
   ParallelFor(static_cast<int>(grid.size()), [&](int k, int) {
     try {
@@ -974,8 +988,32 @@ std::optional<double> ScanBandHz(const compare::Comparison& comparison,
     }
   });
   const size_t best = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
-  if (!std::isfinite(errors[best])) return std::nullopt;
-  return grid[best];
+  if (grid.empty() || !std::isfinite(errors[best])) return std::nullopt;
+  return ScanMinimum{grid[best], errors[best]};
+}
+
+std::optional<double> ScanBandHz(const compare::Comparison& comparison,
+                                 const std::function<model::ModelSpec(double hz)>& model_at) {
+  const Eigen::VectorXd& f = comparison.frequency_hz();
+  if (f.size() < 2) return std::nullopt;
+  const auto best = ScanLogGrid(comparison, f(0), f(f.size() - 1), kModeScanStep, model_at);
+  if (!best) return std::nullopt;
+  return best->at;
+}
+
+std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                         const model::Effect& servo) {
+  if (servo.name != "servo-stiffness") return std::nullopt;
+  const double k = servo.parameters.at("k");
+  const auto best = ScanLogGrid(comparison, k / 100, k * 100, 2 * kModeScanStep, [&](double x) {
+    model::Effect e = servo;
+    e.parameters["k"] = x;
+    model::ModelSpec with = spec;
+    model::ApplyEffect(with, e);
+    return with;
+  });
+  if (!best || !(best->error <= (1 - kServoScanMinDrop) * comparison.Error(spec))) return std::nullopt;
+  return best->at;
 }
 
 std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const DiagnoseSummary& summary,

@@ -225,8 +225,18 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
 /// (23005: 3 %, a body with 2 % damping).
 inline constexpr double kModeScanStep = 0.01;
 
+/// Where on a log grid from `from` to `to` (relative step `step`) the error of model_at(x) is lowest,
+/// and that error; nullopt when no model of the grid could be evaluated. model_at is called from
+/// several threads; a model it cannot build (it throws) is left out.
+struct ScanMinimum {
+  double at = 0;
+  double error = 0;
+};
+std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
+                                       const std::function<model::ModelSpec(double x)>& model_at);
+
 /// The frequency, on a log grid of step kModeScanStep across `comparison`'s band, at which the error of
-/// model_at(hz) is lowest; nullopt when no model of the grid could be evaluated. For a parameter that
+/// model_at(hz) is lowest (ScanLogGrid); nullopt when no model of the grid could be evaluated. For a parameter that
 /// sets a lightly damped mode, whose basin is a few % wide: a fit started outside it puts the mode
 /// where it mimics something else. model_at is called from several threads.
 std::optional<double> ScanBandHz(const compare::Comparison& comparison,
@@ -239,6 +249,20 @@ std::optional<double> ScanBandHz(const compare::Comparison& comparison,
 /// there too.
 std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const DiagnoseSummary& summary,
                                     const Candidate& candidate);
+
+/// A servo stiffness that puts the stage's mode in the drive's direction inside the band is found like
+/// a local mode: the baseline's stiffnesses bend to absorb the missing mode, and from there the fit of
+/// the servo's k falls into another basin. The scan adds the servo to `spec` (the model as given).
+/// The share by which the scan's minimum must lie below `spec`'s own error to count: 29009 (ty.Dy,
+/// 3.2e8 N/m) 12.6 %, 31005 (ty.Dy, 1.2e8 N/m) 9.8 %; on eight effect-free cases 0-6.8 %.
+inline constexpr double kServoScanMinDrop = 0.03;
+
+/// For a servo-stiffness `servo` (its k the catalogue's default): ScanLogGrid over its k from 1/100 to
+/// 100 times that, in steps of 2 kModeScanStep (1 % in the mode's frequency), the servo added to
+/// `spec`; the k of the lowest error when that error is at least kServoScanMinDrop below `spec`'s,
+/// else nullopt (also for another effect). Diagnose() refines a servo from there whatever its screening.
+std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                         const model::Effect& servo);
 
 /// Fits `effect` (parameters as starting values) together with `params` of `base`, returns the fit
 /// summary and the fitted effect; `spec_out` (optional) receives the model with the effect applied.
