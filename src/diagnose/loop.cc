@@ -326,6 +326,59 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
   return moved;
 }
 
+std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
+                                                const compare::Comparison& comparison, const LoopOptions& options,
+                                                model::ModelSpec* current, std::vector<LoopStep>* history) {
+  std::vector<measurement::ChannelDirectionEstimate> directions;
+  try {
+    directions = measurement::EstimateChannelDirections(measurement, comparison.frame_origin_W(),
+                                                        options.diagnose.comparison.fmin_hz, options.diagnose.comparison.fmax_hz);
+  } catch (const InputError&) {
+  }
+  std::vector<std::string> held;
+  std::vector<model::Effect> effects = current->effects;
+  for (size_t k = as_given.effects.size(); k < effects.size(); ++k) {
+    // Checked, as ImplausibleAddedEffects does, against the model without it.
+    std::vector<model::Effect> others = current->effects;
+    others.erase(others.begin() + static_cast<long>(k));
+    model::ModelSpec without = *current;
+    model::SetEffects(without, others);
+    model::Effect& effect = effects[k];
+    const auto nominal = model::DefaultEffectParameters(without, effect.name, effect.location);
+    const std::vector<std::string> at_bounds = ParametersAtBounds(without, effect);
+    for (const std::string& p : at_bounds) {
+      effect.parameters[p] = nominal.at(p);
+      model::HoldEffectParameter(&effect, p);
+      held.push_back(Key(effect) + "." + p);
+    }
+    // A channel's correction also has its turn held where the other channels' rigid motion sees the
+    // channel (measurement::EstimateChannelDirections, no model involved): held at dx = 0, 29011's a1z
+    // correction (turned 20 degrees about x, as estimated) turned 17 degrees about y to take the servo.
+    const auto direction = std::find_if(directions.begin(), directions.end(),
+                                        [&](const auto& d) { return d.name == effect.location && d.estimable; });
+    if (at_bounds.empty() || !model::FindEffectDefinition(effect.name).measured_side_only || direction == directions.end()) {
+      continue;
+    }
+    if (const auto euler = CalcChannelTurn(*direction)) {
+      for (int i = 0; i < 3; ++i) {
+        const std::string p = std::string("r") + "xyz"[i];
+        if (!effect.parameters.count(p) || std::count(effect.held.begin(), effect.held.end(), p)) continue;
+        effect.parameters[p] = (*euler)(i);
+        model::HoldEffectParameter(&effect, p);
+        held.push_back(Key(effect) + "." + p);
+      }
+    }
+  }
+  if (held.empty()) return held;
+  auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, effects);
+  if (!std::isfinite(trial_error)) return {};
+  std::string action = "hold";
+  for (size_t i = 0; i < held.size(); ++i) action += (i ? ", " : " ") + held[i];
+  history->push_back({action + ", refit", "", trial_error});
+  *current = trial;
+  return held;
+}
+
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options) {
   const double start = Now();
   auto say = [&](const std::string& line) {
@@ -380,9 +433,12 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
     }
   };
+  // Up to `max_rounds` rounds of diagnosis from `current`, each adding one effect at most; the first
+  // one even at the floor when `first_at_floor`.
+  auto run_rounds = [&](int max_rounds, bool first_at_floor) {
   summary.stop_reason = "the round limit";
-  for (int round = 0; round < options.max_rounds; ++round) {
-    if (done(summary.history.back().error)) {
+  for (int round = 0; round < max_rounds; ++round) {
+    if (done(summary.history.back().error) && !(first_at_floor && round == 0)) {
       summary.stop_reason = "at the noise floor";
       break;
     }
@@ -406,7 +462,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       // the better model found after them is tried again from that model, in the next round (seed
       // 11002: a payload on rz, the first fit at 1.55x, the diagnosis' baseline at 1.22x where every
       // candidate, fitted from the 1.55x one, stayed above it).
-      if (baseline_taken && !done(summary.history.back().error) && round + 1 < options.max_rounds) continue;
+      if (baseline_taken && !done(summary.history.back().error) && round + 1 < max_rounds) continue;
       summary.stop_reason = at_floor(summary.history.back().error) ? "at the noise floor" : "no effect of the catalogue helps";
       break;
     }
@@ -449,6 +505,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     added = current.effects;
     summary.effects_added = EffectTexts(current.effects);
   }
+  };
+  run_rounds(options.max_rounds, false);
+  // The steps after the rounds: effects moved, a turned channel, rigid limits; then the plausibility check.
+  auto finish = [&] {
   if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
     const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
     for (const std::string& change : moved) say("moved " + change);
@@ -473,6 +533,39 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.effects_added = EffectTexts(current.effects);
   }
   summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
+  };
+  finish();
+  // At the floor with a length or turn at the bound of its range: the effect stands in for something
+  // else beside what it is (seed 29011: a1z turned 20 degrees and a servo of ry.Ry ended as a1z's
+  // correction with dx at its 5 cm bound, 1.01x the floor). The parameter is held at its nominal value,
+  // the model refitted, and more rounds run; their model is taken when it ends at the floor with every
+  // effect plausible and an error within kRigidLimitTolerance of the model's before (what the bound
+  // stood in for is then found), and otherwise the loop goes back to the model before.
+  if (options.hold_rounds > 0 && at_floor(summary.history.back().error) && !summary.implausible_effects.empty()) {
+    const LoopSummary before = summary;
+    const model::ModelSpec before_model = current;
+    const std::vector<std::string> held = HoldParametersAtBounds(spec, measurement, comparison, options, &current, &summary.history);
+    if (!held.empty()) {
+      for (const std::string& h : held) say("held " + h);
+      say("refit: error " + std::to_string(summary.history.back().error));
+      summary.effects_added = EffectTexts(current.effects);
+      // A round runs even at the floor: the held effect can bend to mimic what is missing (29011: held
+      // at dx = 0, a1z's correction turned 10 degrees about y to take the servo, 1.04x the floor).
+      run_rounds(options.hold_rounds, true);
+      finish();
+      const double error = summary.history.back().error;
+      if (!(at_floor(error) && summary.implausible_effects.empty() &&
+            error <= (1 + kRigidLimitTolerance) * before.history.back().error)) {
+        std::vector<LoopStep> tried = summary.history;
+        summary = before;
+        current = before_model;
+        summary.history = tried;
+        summary.history.push_back({"back to the model before the hold (no plausible model as close to the data)", "",
+                                   before.history.back().error});
+        say("back to the model before the hold: error " + std::to_string(summary.history.back().error));
+      }
+    }
+  }
   // false when the floor is unknown (NaN)
   summary.confirmed = at_floor(summary.history.back().error) && summary.implausible_effects.empty();
   summary.conclusion = Conclusion(summary, comparison, current);

@@ -1,5 +1,6 @@
 #include "stagefit/model/effects.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -482,6 +483,7 @@ std::string Effect::ToString() const {
     text += (first ? ":" : ",") + p.name + "=" + Num(it->second);
     first = false;
   }
+  for (const auto& h : held) text += (first ? ":" : ",") + std::string("held=") + h;
   return text;
 }
 
@@ -549,6 +551,27 @@ std::vector<std::string> RedundantEffectParameters(const ModelSpec& before, cons
   return def.redundant ? def.redundant(before, effect) : std::vector<std::string>{};
 }
 
+std::vector<std::string> FixedEffectParameters(const ModelSpec& before, const Effect& effect) {
+  std::vector<std::string> fixed = RedundantEffectParameters(before, effect);
+  for (const auto& h : effect.held) {
+    if (std::find(fixed.begin(), fixed.end(), h) == fixed.end()) fixed.push_back(h);
+  }
+  return fixed;
+}
+
+void HoldEffectParameter(Effect* effect, const std::string& parameter) {
+  const EffectDefinition& def = FindEffectDefinition(effect->name);
+  std::vector<std::string> held;
+  for (const auto& p : def.parameters) {
+    const bool hold = p.name == parameter || std::find(effect->held.begin(), effect->held.end(), p.name) != effect->held.end();
+    if (hold) held.push_back(p.name);
+  }
+  if (std::find(held.begin(), held.end(), parameter) == held.end()) {
+    throw InputError(effect->name + " has no parameter '" + parameter + "' to hold");
+  }
+  effect->held = held;
+}
+
 std::string ExplainEffect(const Effect& effect) { return FindEffectDefinition(effect.name).explain(effect); }
 
 Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::vector<std::string>& channels) {
@@ -581,6 +604,19 @@ Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::ve
       std::string key = item.substr(0, eq);
       while (!key.empty() && key.front() == ' ') key.erase(key.begin());
       while (!key.empty() && key.back() == ' ') key.pop_back();
+      if (key == "held") {
+        std::string name = item.substr(eq + 1);
+        while (!name.empty() && name.front() == ' ') name.erase(name.begin());
+        while (!name.empty() && name.back() == ' ') name.pop_back();
+        const bool known = std::any_of(def.parameters.begin(), def.parameters.end(), [&](const auto& p) { return p.name == name; });
+        if (!known) {
+          std::string names;
+          for (const auto& p : def.parameters) names += (names.empty() ? "" : ", ") + p.name;
+          throw InputError(what + ": held = '" + name + "' is not a parameter of " + e.name + " (it has " + names + ")");
+        }
+        HoldEffectParameter(&e, name);
+        continue;
+      }
       const EffectParameterSpec* ps = nullptr;
       for (const auto& p : def.parameters) {
         if (p.name == key) ps = &p;

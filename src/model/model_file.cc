@@ -456,14 +456,34 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
         }
         continue;
       }
-      std::vector<std::string_view> allowed = {"name", "location"};
+      std::vector<std::string_view> allowed = {"name", "location", "held"};
       for (const auto& p : def->parameters) allowed.push_back(p.name);
       for (const auto& [key, value] : t) {
         if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
         std::string names;
         for (const auto& p : def->parameters) names += (names.empty() ? "" : ", ") + p.name;
-        r.Error(&value, item + " (" + e.name + "): unknown key '" + std::string(key.str()) + "', expected name, location or " +
+        r.Error(&value, item + " (" + e.name + "): unknown key '" + std::string(key.str()) + "', expected name, location, held or " +
                             "a parameter of " + e.name + " (" + names + ")");
+      }
+      // held = ["dx", ...]: parameters every fit leaves at their value.
+      if (const toml::node* h = t.get("held")) {
+        std::string names;
+        for (const auto& p : def->parameters) names += (names.empty() ? "" : ", ") + p.name;
+        const std::string expected = item + " (" + e.name + "): held must be an array of parameter names of " + e.name + " (" + names + ")";
+        if (const toml::array* list = h->as_array()) {
+          for (const auto& x : *list) {
+            const auto name = x.value<std::string>();
+            const bool known = name && std::any_of(def->parameters.begin(), def->parameters.end(),
+                                                   [&](const auto& p) { return p.name == *name; });
+            if (!known) {
+              r.Error(&x, expected + "; got " + (name ? "'" + *name + "'" : std::string("a value that is not a string")));
+              continue;
+            }
+            HoldEffectParameter(&e, *name);
+          }
+        } else {
+          r.Error(h, expected);
+        }
       }
       for (const auto& p : def->parameters) {
         const toml::node* v = t.get(p.name);
@@ -597,6 +617,11 @@ std::string WriteModelToml(const ModelSpec& spec) {
     for (const auto& p : FindEffectDefinition(e.name).parameters) {
       auto it = e.parameters.find(p.name);
       if (it != e.parameters.end()) out << p.name << " = " << Fmt(it->second) << "  # " << p.doc << "\n";
+    }
+    if (!e.held.empty()) {
+      out << "held = [";
+      for (size_t i = 0; i < e.held.size(); ++i) out << (i ? ", " : "") << Quote(e.held[i]);
+      out << "]  # left at their value by every fit\n";
     }
   }
   for (const auto& h : spec.history) {

@@ -129,14 +129,15 @@ std::vector<std::string> EffectParameterPatterns(const ModelSpec& spec) {
     if (def.set_by_experiment) continue;
     // fnmatch: a location's own brackets or stars would be patterns; catalogue locations have none.
     const std::string prefix = e.name + "@" + e.location + ".";
-    const std::vector<std::string> redundant =
-        def.redundant ? RedundantEffectParameters(ExpandedBefore(spec, k), e) : std::vector<std::string>{};
-    if (redundant.empty()) {
+    // Redundant and held parameters are left out (FixedEffectParameters).
+    const std::vector<std::string> fixed =
+        def.redundant || !e.held.empty() ? FixedEffectParameters(ExpandedBefore(spec, k), e) : std::vector<std::string>{};
+    if (fixed.empty()) {
       add(prefix + "*");
       continue;
     }
     for (const auto& p : def.parameters) {
-      if (e.parameters.count(p.name) && std::find(redundant.begin(), redundant.end(), p.name) == redundant.end()) {
+      if (e.parameters.count(p.name) && std::find(fixed.begin(), fixed.end(), p.name) == fixed.end()) {
         add(prefix + p.name);
       }
     }

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "stagefit/compare/residuals.h"
+#include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/synthetic/outside_catalogue.h"
@@ -271,6 +272,50 @@ TEST(ImplausibleAddedEffects, ListsAnAddedEffectAtItsBoundOnly) {
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].rfind("sensor-geometry@h5: dz = 0.05 m is at the bound", 0), 0u) << found[0];
   EXPECT_TRUE(ImplausibleAddedEffects(final, final, 5.0).empty());
+}
+
+// A channel's correction with its offset at the bound of its range (a2x of seed 7006, truly turned 16
+// degrees about z, given dy = 5 cm and no turn): the offset is held at none and the turn where the
+// other channels' rigid motion sees the channel; the refit from both starts leaves every held value
+// where it was put, and with the turn held right the model reaches the noise floor.
+TEST(HoldParametersAtBounds, HoldsAnOffsetAtNoneAndAChannelsTurnAtItsEstimate) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(7006, 477, "sensor-geometry@a2x", &c));
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  model::ModelSpec current = nominal;
+  model::ApplyEffect(current, model::ParseEffect("sensor-geometry@a2x:dy=0.05", current));
+  ASSERT_FALSE(ImplausibleAddedEffects(nominal, current, 5.0).empty());
+  std::vector<LoopStep> history = {{"as given", "", comparison.Error(current)}};
+  const LoopOptions options = Options({});
+  const std::vector<std::string> held = HoldParametersAtBounds(nominal, c.measurement, comparison, options, &current, &history);
+  EXPECT_EQ(held, (std::vector<std::string>{"sensor-geometry@a2x.dy", "sensor-geometry@a2x.rx", "sensor-geometry@a2x.ry",
+                                            "sensor-geometry@a2x.rz"}));
+  ASSERT_EQ(current.effects.size(), 1u);
+  const model::Effect& e = current.effects[0];
+  EXPECT_EQ(e.held, (std::vector<std::string>{"dy", "rx", "ry", "rz"}));
+  EXPECT_EQ(e.parameters.at("dy"), 0.0);
+  EXPECT_NEAR(std::abs(e.parameters.at("rz")) * 180 / M_PI, 16.0, 1.0);
+  // The held turn is the estimate itself, untouched by the refit.
+  const auto directions = measurement::EstimateChannelDirections(c.measurement, comparison.frame_origin_W(), options.diagnose.comparison.fmin_hz,
+                                                                  options.diagnose.comparison.fmax_hz);
+  for (const auto& d : directions) {
+    if (d.name != "a2x") continue;
+    const auto euler = CalcChannelTurn(d);
+    ASSERT_TRUE(euler.has_value());
+    EXPECT_EQ(e.parameters.at("rx"), (*euler)(0));
+    EXPECT_EQ(e.parameters.at("rz"), (*euler)(2));
+  }
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[1].action.rfind("hold sensor-geometry@a2x.dy, ", 0), 0u) << history[1].action;
+  EXPECT_EQ(history[1].error, comparison.Error(current));
+  EXPECT_LE(history[1].error, kDoneTimesFloor * comparison.CalcNoiseFloor().floor);
+  EXPECT_TRUE(ImplausibleAddedEffects(nominal, current, 5.0).empty());
+  // Nothing at a bound: nothing held, nothing changed.
+  const model::ModelSpec before = current;
+  EXPECT_TRUE(HoldParametersAtBounds(nominal, c.measurement, comparison, options, &current, &history).empty());
+  EXPECT_EQ(current.effects, before.effects);
+  EXPECT_EQ(history.size(), 2u);
 }
 
 // An effect the loop added in an earlier round that a later one makes unnecessary is dropped: with the

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -171,6 +172,56 @@ TEST(EffectParameters, BadEffectTablesAreNamed) {
   e = error_of("\n[[effect]]\nname = \"payload\"\nlocation = \"hexapod\"\nz = \"5 kg\"\n");
   EXPECT_NE(e.find("z"), std::string::npos) << e;
   EXPECT_NE(e.find("length"), std::string::npos) << e;
+}
+
+// A held parameter keeps its value through every fit: it is in the text form and the model file, and
+// left out of the effect parameters a fit frees by default (an explicit name still matches it).
+TEST(EffectParameters, AHeldParameterIsKeptInTextAndFileAndLeftOutOfTheFit) {
+  ModelSpec spec = DefaultModelSpec();
+  const Effect e = ParseEffect("sensor-geometry@a2x:dy=0,rz=0.1,held=dy,held=rz", spec);
+  EXPECT_EQ(e.held, (std::vector<std::string>{"dy", "rz"}));
+  EXPECT_EQ(ParseEffect(e.ToString(), spec), e);
+  EXPECT_NE(e.ToString().find(",held=dy,held=rz"), std::string::npos) << e.ToString();
+  // Kept in catalogue order, once, whatever the order given.
+  EXPECT_EQ(ParseEffect("sensor-geometry@a2x:held=rz,held=dy,held=rz", spec).held, e.held);
+  ApplyEffect(spec, e);
+  ApplyEffect(spec, ParseEffect("payload@hexapod:mass=3", spec));
+  const std::string text = WriteModelToml(spec);
+  EXPECT_NE(text.find("held = [\"dy\", \"rz\"]"), std::string::npos) << text;
+  const ModelSpec back = ParseModelToml(text, "held.toml");
+  EXPECT_EQ(back.effects, spec.effects);
+  EXPECT_EQ(WriteModelToml(back), text);
+  const std::vector<std::string> patterns = EffectParameterPatterns(spec);
+  auto has = [&](const std::string& p) { return std::find(patterns.begin(), patterns.end(), p) != patterns.end(); };
+  EXPECT_TRUE(has("payload@hexapod.*"));
+  // a2x's own axis (dx, rx) is redundant; dy and rz are held.
+  EXPECT_TRUE(has("sensor-geometry@a2x.dz"));
+  EXPECT_TRUE(has("sensor-geometry@a2x.ry"));
+  EXPECT_FALSE(has("sensor-geometry@a2x.dy"));
+  EXPECT_FALSE(has("sensor-geometry@a2x.rz"));
+  EXPECT_EQ(MatchParameters(spec, {"sensor-geometry@a2x.rz"}).size(), 1u);
+}
+
+TEST(EffectParameters, ABadHeldParameterIsNamed) {
+  const ModelSpec spec = DefaultModelSpec();
+  try {
+    ParseEffect("payload@hexapod:held=mas", spec);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("held = 'mas' is not a parameter of payload (it has mass, x, y, z)"), std::string::npos)
+        << e.what();
+  }
+  const std::string base = WriteModelToml(spec);
+  for (const char* held : {"[\"mas\"]", "\"mass\"", "[3]"}) {
+    try {
+      ParseModelToml(base + "\n[[effect]]\nname = \"payload\"\nlocation = \"hexapod\"\nheld = " + held + "\n", "bad.toml");
+      ADD_FAILURE() << "no error for held = " << held;
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("bad.toml"), std::string::npos) << what;
+      EXPECT_NE(what.find("held must be an array of parameter names of payload (mass, x, y, z)"), std::string::npos) << what;
+    }
+  }
 }
 
 TEST(EffectParameters, OldFilesWithEffectTextStillLoad) {

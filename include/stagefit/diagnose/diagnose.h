@@ -127,6 +127,10 @@ struct Candidate {
 /// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz).
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0);
 
+/// The length and angle parameters of `effect` a fit sets that lie within 1 % of the bound of their
+/// search range on `baseline` (the check of ImplausibleBecause()), in catalogue order.
+std::vector<std::string> ParametersAtBounds(const model::ModelSpec& baseline, const model::Effect& effect);
+
 /// A leader and its rigid limit (model::EffectDefinition::rigid_limit) at the same location are told
 /// apart only when the limit's error is more than this share above the leader's.
 constexpr double kRigidLimitTolerance = 0.01;

@@ -54,6 +54,9 @@ struct LoopOptions {
   /// The largest relative rise of the error with which a turned-channel correction is kept (the noise
   /// floor's standard deviation is about 1 % of it).
   double turned_channel_max_rise = 0.03;
+  /// Rounds run after holding the parameters an added effect ran to the bound of their range
+  /// (HoldParametersAtBounds) when the loop ends at the noise floor with them; 0: no such step.
+  int hold_rounds = 2;
   std::function<void(const std::string&)> progress;  ///< one line per step, for a terminal
 };
 
@@ -142,6 +145,24 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
 /// tried: the data see that mode. Returns "<effect>@<location> -> <limit>@<location>" for each limit taken.
 std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                          const LoopOptions& options, model::ModelSpec* current, std::vector<LoopStep>* history);
+
+/// The loop's step when it ends at the noise floor with an added effect whose length or turn ran to the
+/// bound of its range (ParametersAtBounds(), checked against `current` without the effect): each such
+/// parameter is set to its nominal value (the catalogue's default at the location: no offset, no turn)
+/// and held there (model::Effect::held); a channel's correction (model::EffectDefinition::
+/// measured_side_only) also has its turn held at the channel's direction as the other channels' rigid
+/// motion sees it (measurement::EstimateChannelDirections, CalcChannelTurn()), where that is estimable.
+/// The model is then refitted from `current`'s state and from the
+/// model as given (the better kept); a "hold" step with its error is appended to `history` and `current`
+/// becomes that model. The loop then runs more rounds (LoopOptions::hold_rounds, the first even at the
+/// floor) and keeps their model only when it ends at the floor with every effect plausible and its error
+/// within kRigidLimitTolerance of the model's before the hold. An effect at its bound stands in for
+/// something else beside what it is: a channel turned 20 degrees and a servo of ry.Ry were fitted as the
+/// channel's correction with its offset at 5 cm (seed 29011). Returns "<effect>@<location>.<parameter>"
+/// of the parameters held; empty (nothing changed) when there are none or the refit fails.
+std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
+                                                const compare::Comparison& comparison, const LoopOptions& options,
+                                                model::ModelSpec* current, std::vector<LoopStep>* history);
 
 /// The effects of `final` after those of `as_given` (the ones the loop added) that ImplausibleBecause()
 /// finds absurd, each checked against `final` without it: "<effect>@<location>: why".

@@ -109,6 +109,14 @@ EffectParameterRange EffectRange(const ModelSpec& before, const Effect& effect, 
 /// EffectDefinition::redundant of the effect's entry (empty when it has none).
 std::vector<std::string> RedundantEffectParameters(const ModelSpec& before, const Effect& effect);
 
+/// The parameters of `effect` no fit sets: the redundant ones (RedundantEffectParameters) and those it
+/// holds (Effect::held).
+std::vector<std::string> FixedEffectParameters(const ModelSpec& before, const Effect& effect);
+
+/// Adds `parameter` to `effect`'s held ones (kept in catalogue order). Throws InputError when the
+/// effect has no such parameter.
+void HoldEffectParameter(Effect* effect, const std::string& parameter);
+
 /// The catalogue entry's sentence for a fitted effect.
 std::string ExplainEffect(const Effect& effect);
 

@@ -95,10 +95,13 @@ struct Effect {
   std::string name;
   std::string location;
   std::map<std::string, double> parameters;
-  /// "name@location:p1=v1,p2=v2" with 17 significant digits, parameters in catalogue order.
+  /// Parameters every fit leaves at their value, in catalogue order: a user's choice, or the loop's
+  /// for a length or turn a fit ran to the bound of its range (diagnose::HoldParametersAtBounds).
+  std::vector<std::string> held;
+  /// "name@location:p1=v1,p2=v2[,held=p1]" with 17 significant digits, parameters in catalogue order.
   std::string ToString() const;
   bool operator==(const Effect& other) const {
-    return name == other.name && location == other.location && parameters == other.parameters;
+    return name == other.name && location == other.location && parameters == other.parameters && held == other.held;
   }
 };
 
