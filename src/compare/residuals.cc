@@ -515,12 +515,27 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
   Eigen::MatrixXd P, Q;
   const bool reprojected = CorrectedProjection(spec, &P, &Q);
   side->values = reprojected ? &Reproject(P, Q, &side->storage) : &measured_;
-  side->weights.resize(points_.size());
   if (!reprojected || raw_noise_var_.empty()) {
+    side->weights.resize(points_.size());
     for (size_t p = 0; p < points_.size(); ++p) side->weights[p] = points_[p].weight;
     side->norm = weight_norm_;
     return;
   }
+  side->weights = ReprojectedWeights(*side->values, P, Q);
+  // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
+  // Create(): it stops counting (header), decided on the whole grid (OnFrequencies()).
+  const Eigen::MatrixXi noise = element_reference_ ? element_reference_->NoiseElementsUnder(P, Q) : NoiseElements(side->weights);
+  double sum_w2 = 0.0;
+  for (size_t p = 0; p < points_.size(); ++p) {
+    const ElementIndex idx = used_elements_[points_[p].element];
+    if (noise(idx.output, idx.input)) side->weights[p] = 0.0;
+    sum_w2 += side->weights[p] * side->weights[p];
+  }
+  side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
+}
+
+std::vector<double> Comparison::ReprojectedWeights(const std::vector<Eigen::MatrixXcd>& values, const Eigen::MatrixXd& P,
+                                                   const Eigen::MatrixXd& Q) const {
   // Re-projected: each point's SNR again (header), as Create() weighs the declared projection, with the
   // raw noise propagated through this projection. (With the declared projection's noise, a turned
   // channel's correction weighed the elements it makes noisier as if they were not: the noise-free
@@ -528,33 +543,80 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
   const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
   std::vector<Eigen::MatrixXd> noise_sigma(raw_noise_var_.size());
   for (size_t k = 0; k < noise_sigma.size(); ++k) noise_sigma[k] = (P2 * raw_noise_var_[k] * Q2).cwiseSqrt();
-  double sum_w2 = 0.0;
+  std::vector<double> weights(points_.size());
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];
     const ElementIndex idx = used_elements_[pt.element];
     const double sigma = noise_sigma[pt.frequency](idx.output, idx.input);
-    const double magnitude = std::abs((*side->values)[pt.frequency](idx.output, idx.input));
-    side->weights[p] = !std::isfinite(sigma) ? 0.0 : sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
+    const double magnitude = std::abs(values[pt.frequency](idx.output, idx.input));
+    weights[p] = !std::isfinite(sigma) ? 0.0 : sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
   }
-  // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
-  // Create(): it stops counting (header). Points are element-major, so each element's are contiguous.
+  return weights;
+}
+
+Eigen::MatrixXi Comparison::NoiseElements(const std::vector<double>& weights) const {
+  Eigen::MatrixXi noise = Eigen::MatrixXi::Zero(num_outputs(), num_inputs());
+  if (!(min_element_snr_ > 0.0)) return noise;
+  // Points are element-major, so each element's are contiguous.
   std::vector<double> element_weights;
   for (size_t first = 0; first < points_.size();) {
     size_t last = first;
     while (last < points_.size() && points_[last].element == points_[first].element) ++last;
     const ElementIndex idx = used_elements_[points_[first].element];
-    if (idx.output != idx.input && min_element_snr_ > 0.0) {
-      element_weights.assign(side->weights.begin() + first, side->weights.begin() + last);
+    if (idx.output != idx.input) {
+      element_weights.assign(weights.begin() + first, weights.begin() + last);
       const size_t mid = element_weights.size() / 2;
       std::nth_element(element_weights.begin(), element_weights.begin() + mid, element_weights.end());
-      if (element_weights[mid] < min_element_snr_) {
-        std::fill(side->weights.begin() + first, side->weights.begin() + last, 0.0);
-      }
+      if (element_weights[mid] < min_element_snr_) noise(idx.output, idx.input) = 1;
     }
     first = last;
   }
-  for (double w : side->weights) sum_w2 += w * w;
-  side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
+  return noise;
+}
+
+Eigen::MatrixXi Comparison::NoiseElementsUnder(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q) const {
+  std::vector<Eigen::MatrixXcd> storage;
+  return NoiseElements(ReprojectedWeights(Reproject(P, Q, &storage), P, Q));
+}
+
+Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
+  Comparison c = *this;
+  c.element_reference_ = element_reference_ ? element_reference_ : std::make_shared<const Comparison>(*this);
+  const int nf = num_frequencies();
+  std::vector<int> index(static_cast<size_t>(nf), -1);
+  for (size_t k = 0; k < kept.size(); ++k) {
+    STAGEFIT_ASSERT(kept[k] >= 0 && kept[k] < nf && (k == 0 || kept[k] > kept[k - 1]),
+                    "OnFrequencies: ascending indices into the comparison's frequencies");
+    index[static_cast<size_t>(kept[k])] = static_cast<int>(k);
+  }
+  auto subset = [&](const auto& all) {
+    std::decay_t<decltype(all)> out;
+    if (all.empty()) return out;
+    for (int k : kept) out.push_back(all[static_cast<size_t>(k)]);
+    return out;
+  };
+  c.frequency_hz_.resize(static_cast<int>(kept.size()));
+  for (size_t k = 0; k < kept.size(); ++k) c.frequency_hz_(static_cast<int>(k)) = frequency_hz_(kept[k]);
+  c.measured_ = subset(measured_);
+  c.weights_ = subset(weights_);
+  c.snr_ = subset(snr_);
+  c.raw_measured_ = subset(raw_measured_);
+  c.raw_noise_var_ = subset(raw_noise_var_);
+  c.points_.clear();
+  double sum_w2 = 0.0;
+  for (const Point& p : points_) {
+    const int k = index[static_cast<size_t>(p.frequency)];
+    if (k < 0) continue;
+    Point q = p;
+    q.frequency = k;
+    c.points_.push_back(q);
+    sum_w2 += q.weight * q.weight;
+  }
+  if (c.points_.empty() || !(sum_w2 > 0.0)) {
+    throw InputError(source_ + ": no compared point at the frequencies kept");
+  }
+  c.weight_norm_ = std::sqrt(sum_w2);
+  return c;
 }
 
 std::vector<std::string> Comparison::CorrectableChannels() const {

@@ -338,29 +338,14 @@ std::map<std::string, ChannelTurn> EstimateChannelTurns(const measurement::FrfDa
   return turns;
 }
 
-/// `data` at every k-th of its frequencies within [fmin_hz, fmax_hz], k the smallest step that leaves at
-/// most `max_frequencies` of them; nullopt when the band holds no more than that (or max_frequencies <= 0).
-std::optional<measurement::FrfData> ThinFrequencies(const measurement::FrfData& data, double fmin_hz, double fmax_hz,
-                                                    int max_frequencies) {
-  std::vector<int> in_band;
-  for (int f = 0; f < data.num_frequencies(); ++f) {
-    if (data.frequency_hz(f) >= fmin_hz && data.frequency_hz(f) <= fmax_hz) in_band.push_back(f);
-  }
-  const int count = static_cast<int>(in_band.size());
+/// Every k-th of `count` frequencies, k the smallest step that leaves at most `max_frequencies` of
+/// them; nullopt when there are no more than that (or max_frequencies <= 0).
+std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencies) {
   if (max_frequencies <= 0 || count <= max_frequencies) return std::nullopt;
   const int step = (count + max_frequencies - 1) / max_frequencies;
   std::vector<int> kept;
-  for (int k = 0; k < count; k += step) kept.push_back(in_band[k]);
-  measurement::FrfData thinned = data;
-  thinned.frequency_hz.resize(static_cast<int>(kept.size()));
-  thinned.frf.clear();
-  thinned.coherence.clear();
-  for (size_t k = 0; k < kept.size(); ++k) {
-    thinned.frequency_hz(static_cast<int>(k)) = data.frequency_hz(kept[k]);
-    thinned.frf.push_back(data.frf[kept[k]]);
-    if (data.has_coherence()) thinned.coherence.push_back(data.coherence[kept[k]]);
-  }
-  return thinned;
+  for (int k = 0; k < count; k += step) kept.push_back(k);
+  return kept;
 }
 
 }  // namespace
@@ -457,12 +442,11 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // ranks them as well at a fraction of the cost; the leaders are finished and every candidate is scored
   // on all frequencies.
   std::optional<compare::Comparison> thinned_comparison;
-  if (auto thinned = ThinFrequencies(measurement, options.comparison.fmin_hz, options.comparison.fmax_hz,
-                                     options.max_search_frequencies)) {
+  if (auto kept = ThinnedFrequencies(comparison.num_frequencies(), options.max_search_frequencies)) {
     try {
-      thinned_comparison = compare::Comparison::Create(spec, *thinned, options.comparison);
+      thinned_comparison = comparison.OnFrequencies(*kept);
     } catch (const InputError&) {
-      // The thinned grid cannot be compared on its own (no significant element left): search on all.
+      // No compared point left on the thinned grid: search on all.
     }
   }
   const compare::Comparison& search = thinned_comparison ? *thinned_comparison : comparison;
@@ -504,7 +488,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   std::vector<double> extra_body_start_hz = {40.0, 70.0, 120.0, 200.0, 320.0};
   if (const auto hz = WorstBandCentreHz(comparison, summary.baseline)) extra_body_start_hz.push_back(*hz);
   std::vector<Try> tries;
-  std::vector<Try> scanned_servos;  // refined without screening (ScanServoStiffness)
+  std::vector<Try> scan_starts;  // refined without screening (ScanServoStiffness, ScanCouplingStiffness)
+  std::vector<model::Effect> couplings;  // scanned after the loop below
   auto add_try = [&](const model::Effect& e) {
     tries.push_back({e, {}, {}});
     if (model::FindEffectDefinition(e.name).adds_mass) {
@@ -595,10 +580,28 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       if (const auto k = ScanServoStiffness(search, spec_as_given, e)) {
         model::Effect scanned = e;
         scanned.parameters["k"] = *k;
-        scanned_servos.push_back({scanned, as_given, {}});
+        scan_starts.push_back({scanned, as_given, {}});
       }
     } else {
       add_try(e);
+      if (e.name == "coupled-stiffness") couplings.push_back(e);
+    }
+  }
+  // The couplings scanned on the model as given (ScanCouplingStiffness); the best kCouplingScansRefined
+  // refined from their minima whatever their screening.
+  {
+    std::vector<std::optional<ScanMinimum>> scans(couplings.size());
+    for (size_t i = 0; i < couplings.size(); ++i) scans[i] = ScanCouplingStiffness(search, spec_as_given, couplings[i]);
+    std::vector<size_t> order;
+    const double error_as_given = search.Error(spec_as_given);
+    for (size_t i = 0; i < scans.size(); ++i) {
+      if (scans[i] && scans[i]->error <= (1 - kServoScanMinDrop) * error_as_given) order.push_back(i);
+    }
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return scans[a]->error < scans[b]->error; });
+    for (size_t j = 0; j < order.size() && j < static_cast<size_t>(kCouplingScansRefined); ++j) {
+      model::Effect scanned = couplings[order[j]];
+      scanned.parameters["k"] = scans[order[j]]->at;
+      scan_starts.push_back({scanned, as_given, {}});
     }
   }
   // The criterion against the baseline (header): delta BIC, and a fall of the error that counts. A
@@ -703,8 +706,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // the hexapod that was the truth (seed 1002).
   std::vector<Try> refine = Continue(unique, options.num_refined, kMaxRefinedPerEffect);
   say(Format("refining the best %.0f", static_cast<double>(refine.size())) +
-      (scanned_servos.empty() ? "" : Format(" and %.0f servo stiffnesses from their scans", static_cast<double>(scanned_servos.size()))));
-  refine.insert(refine.end(), scanned_servos.begin(), scanned_servos.end());
+      (scan_starts.empty() ? "" : Format(" and %.0f servo stiffnesses and couplings from their scans", static_cast<double>(scan_starts.size()))));
+  refine.insert(refine.end(), scan_starts.begin(), scan_starts.end());
   MergeBetter(run(refine, options.refine_iterations, true, true, search, search_scale), &unique);
   // A second start for the leaders: the model's parameters as given, with the effect as fitted. The
   // baseline's stiffnesses have bent to mimic the missing effect (a delay's phase, a payload's mass)
@@ -982,11 +985,8 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
   return with;
 }
 
-std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
-                                       const std::function<model::ModelSpec(double x)>& model_at) {
-  if (!(from > 0) || !(to >= from) || !(step > 0)) return std::nullopt;
-  std::vector<double> grid;
-  for (double x = from; x <= to; x *= 1 + step) grid.push_back(x);
+std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const std::vector<double>& grid,
+                                    const std::function<model::ModelSpec(double x)>& model_at) {
   std::vector<double> errors(grid.size(), std::numeric_limits<double>::infinity());
   ParallelFor(static_cast<int>(grid.size()), [&](int k, int) {
     try {
@@ -996,9 +996,36 @@ std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, do
       // A stiffness the model cannot take: left out of the scan.
     }
   });
+  if (grid.empty()) return std::nullopt;
   const size_t best = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
-  if (grid.empty() || !std::isfinite(errors[best])) return std::nullopt;
+  if (!std::isfinite(errors[best])) return std::nullopt;
   return ScanMinimum{grid[best], errors[best]};
+}
+
+std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
+                                       const std::function<model::ModelSpec(double x)>& model_at) {
+  if (!(from > 0) || !(to >= from) || !(step > 0)) return std::nullopt;
+  std::vector<double> grid;
+  for (double x = from; x <= to; x *= 1 + step) grid.push_back(x);
+  return ScanGrid(comparison, grid, model_at);
+}
+
+std::optional<ScanMinimum> ScanCouplingStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                                 const model::Effect& coupling) {
+  if (coupling.name != "coupled-stiffness") return std::nullopt;
+  const model::EffectParameterRange range = model::EffectRange(spec, coupling, "k");
+  if (!std::isfinite(range.lower) || !std::isfinite(range.upper) || !(range.upper > range.lower)) return std::nullopt;
+  std::vector<double> grid;
+  for (int i = 0; i <= kCouplingScanSteps; ++i) {
+    grid.push_back(range.lower + (range.upper - range.lower) * i / kCouplingScanSteps);
+  }
+  return ScanGrid(comparison, grid, [&](double k) {
+    model::Effect e = coupling;
+    e.parameters["k"] = k;
+    model::ModelSpec with = spec;
+    model::ApplyEffect(with, e);
+    return with;
+  });
 }
 
 std::optional<double> ScanBandHz(const compare::Comparison& comparison,

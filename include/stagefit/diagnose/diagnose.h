@@ -238,6 +238,9 @@ struct ScanMinimum {
 };
 std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
                                        const std::function<model::ModelSpec(double x)>& model_at);
+/// As ScanLogGrid, on the points of `grid`.
+std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const std::vector<double>& grid,
+                                    const std::function<model::ModelSpec(double x)>& model_at);
 
 /// The frequency, on a log grid of step kModeScanStep across `comparison`'s band, at which the error of
 /// model_at(hz) is lowest (ScanLogGrid); nullopt when no model of the grid could be evaluated. For a parameter that
@@ -267,6 +270,22 @@ inline constexpr double kServoScanMinDrop = 0.03;
 /// else nullopt (also for another effect). Diagnose() refines a servo from there whatever its screening.
 std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
                                          const model::Effect& servo);
+
+/// A coupling between two DoF of a joint is as nonlinear as a local mode: a strong one (correlation
+/// 0.76 between hexapod Dx and Ry, seed 33013) moves the joint's modes and their shapes, and a fit from no
+/// coupling, on the baseline or on the model as given, stopped at 29x the noise floor (0.998, the
+/// baseline at 0.836) while the scan on the model as given has its minimum at correlation 0.80, 0.507
+/// against the next location's 1.42. The scan's grid: kCouplingScanSteps steps from minus to plus the
+/// bound of the coupling's range (0.95 sqrt(k_a k_b), where the joint stays positive definite).
+inline constexpr int kCouplingScanSteps = 40;
+/// Of the couplings scanned, this many with the lowest minima are refined from there (when they lie
+/// kServoScanMinDrop below the model's error).
+inline constexpr int kCouplingScansRefined = 2;
+
+/// For a coupled-stiffness `coupling`: ScanGrid over its k across its range (kCouplingScanSteps), the
+/// coupling added to `spec`; the k of the lowest error and that error, or nullopt when no model of the grid could be evaluated (also for another effect).
+std::optional<ScanMinimum> ScanCouplingStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                                 const model::Effect& coupling);
 
 /// Fits `effect` (parameters as starting values) together with `params` of `base`, returns the fit
 /// summary and the fitted effect; `spec_out` (optional) receives the model with the effect applied.
