@@ -587,20 +587,20 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       if (e.name == "coupled-stiffness") couplings.push_back(e);
     }
   }
-  // The couplings scanned on the model as given (ScanCouplingStiffness); the best kCouplingScansRefined
-  // refined from their minima whatever their screening.
+  // The couplings scanned on the model as given (ScanCouplingStiffness); the best one refined from its
+  // minimum whatever its screening when it stands out (kCouplingScanLead).
   {
+    std::vector<std::pair<double, size_t>> minima;  // (error, index into couplings)
     std::vector<std::optional<ScanMinimum>> scans(couplings.size());
-    for (size_t i = 0; i < couplings.size(); ++i) scans[i] = ScanCouplingStiffness(search, spec_as_given, couplings[i]);
-    std::vector<size_t> order;
-    const double error_as_given = search.Error(spec_as_given);
-    for (size_t i = 0; i < scans.size(); ++i) {
-      if (scans[i] && scans[i]->error <= (1 - kServoScanMinDrop) * error_as_given) order.push_back(i);
+    for (size_t i = 0; i < couplings.size(); ++i) {
+      scans[i] = ScanCouplingStiffness(search, spec_as_given, couplings[i]);
+      if (scans[i]) minima.push_back({scans[i]->error, i});
     }
-    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return scans[a]->error < scans[b]->error; });
-    for (size_t j = 0; j < order.size() && j < static_cast<size_t>(kCouplingScansRefined); ++j) {
-      model::Effect scanned = couplings[order[j]];
-      scanned.parameters["k"] = scans[order[j]]->at;
+    std::sort(minima.begin(), minima.end());
+    if (!minima.empty() && minima[0].first <= (1 - kServoScanMinDrop) * search.Error(spec_as_given) &&
+        (minima.size() < 2 || minima[0].first <= kCouplingScanLead * minima[1].first)) {
+      model::Effect scanned = couplings[minima[0].second];
+      scanned.parameters["k"] = scans[minima[0].second]->at;
       scan_starts.push_back({scanned, as_given, {}});
     }
   }
