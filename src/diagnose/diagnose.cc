@@ -597,7 +597,15 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       if (scans[i]) minima.push_back({scans[i]->error, i});
     }
     std::sort(minima.begin(), minima.end());
-    if (!minima.empty() && minima[0].first <= (1 - kServoScanMinDrop) * search.Error(spec_as_given) &&
+    // The model as given with the effects added so far as fitted (their parameters on the fitted
+    // stiffnesses) may be no model: a coupling fitted beside stiffer joints than given makes the joint
+    // indefinite (seed 35023 of eval_loop). Its scans then have no minimum either.
+    double error_as_given = std::numeric_limits<double>::infinity();
+    try {
+      error_as_given = search.Error(spec_as_given);
+    } catch (const InputError&) {
+    }
+    if (!minima.empty() && std::isfinite(error_as_given) && minima[0].first <= (1 - kServoScanMinDrop) * error_as_given &&
         (minima.size() < 2 || minima[0].first <= kCouplingScanLead * minima[1].first)) {
       model::Effect scanned = couplings[minima[0].second];
       scanned.parameters["k"] = scans[minima[0].second]->at;
@@ -1048,7 +1056,14 @@ std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, 
     model::ApplyEffect(with, e);
     return with;
   });
-  if (!best || !(best->error <= (1 - kServoScanMinDrop) * comparison.Error(spec))) return std::nullopt;
+  if (!best) return std::nullopt;
+  double error = 0;
+  try {
+    error = comparison.Error(spec);
+  } catch (const InputError&) {
+    return std::nullopt;  // `spec` itself is not a model (the effects it holds on the stiffnesses it has)
+  }
+  if (!(best->error <= (1 - kServoScanMinDrop) * error)) return std::nullopt;
   return best->at;
 }
 

@@ -415,6 +415,17 @@ double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, do
   return std::sqrt(sum / (static_cast<double>(without.num_frequencies()) * without.num_outputs() * without.num_inputs()));
 }
 
+HiddenEffectOptions EvalLoopCaseOptions(int num_effects, double fmax_hz, int num_frequencies) {
+  HiddenEffectOptions options;
+  options.num_effects = num_effects;
+  options.fmin_hz = 5.0;
+  options.fmax_hz = fmax_hz;
+  options.num_frequencies = num_frequencies;
+  options.noise_min = 0.01;
+  options.noise_max = 0.03;
+  return options;
+}
+
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -65,14 +65,9 @@ struct Outcome {
 
 synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
   std::mt19937_64 rng(seed ^ 0x5eedULL);
-  synthetic::HiddenEffectOptions options;
-  options.num_effects = num_effects;
-  options.fmin_hz = 5.0;
-  options.fmax_hz = std::uniform_int_distribution<int>(0, 1)(rng) ? 600.0 : 150.0;
-  options.num_frequencies = std::uniform_int_distribution<int>(300, 1200)(rng);
-  options.noise_min = 0.01;
-  options.noise_max = 0.03;
-  return options;
+  const double fmax_hz = std::uniform_int_distribution<int>(0, 1)(rng) ? 600.0 : 150.0;
+  const int num_frequencies = std::uniform_int_distribution<int>(300, 1200)(rng);
+  return synthetic::EvalLoopCaseOptions(num_effects, fmax_hz, num_frequencies);
 }
 
 // The last diagnosis' leading candidates: what the loop chose from, or why it stopped.

@@ -355,14 +355,7 @@ TEST_F(ResidualsTest, OptionsOutOfRangeAreRejectedByName) {
 // Rx/Fx, noise under that correction: 7.76 against 2.13.
 TEST(OnFrequencies, KeepsTheWholeGridsElementsUnderACorrection) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions options;
-  options.num_effects = 2;
-  options.fmin_hz = 5;
-  options.fmax_hz = 150;
-  options.num_frequencies = 737;
-  options.noise_min = 0.01;
-  options.noise_max = 0.03;
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 33013, options);
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 33013, synthetic::EvalLoopCaseOptions(2, 150, 737));
   model::ModelSpec with_a3z = nominal;
   model::ApplyEffect(with_a3z, model::ParseEffect("sensor-geometry@a3z:dx=0.0143,dy=0.00165,ry=-0.3378", with_a3z));
   const Comparison whole = Comparison::Create(nominal, c.measurement);

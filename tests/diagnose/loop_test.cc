@@ -59,22 +59,11 @@ TEST(Loop, AddsTheHiddenEffectAndStopsAtTheFloor) {
   EXPECT_EQ(FormatLoopHistory(summary).rfind("step,action,effect,error,noise_floor,times_floor\n", 0), 0u);
 }
 
-// The options of eval_loop's cases: 5 Hz to `fmax_hz`, `num_frequencies`, noise 1-3 %.
-synthetic::HiddenEffectOptions EvalLoopOptions(double fmax_hz, int num_frequencies) {
-  synthetic::HiddenEffectOptions o;
-  o.fmin_hz = 5;
-  o.fmax_hz = fmax_hz;
-  o.num_frequencies = num_frequencies;
-  o.noise_min = 0.01;
-  o.noise_max = 0.03;
-  return o;
-}
-
 // A single-effect case of tests/bench/eval_loop (5 Hz to `fmax_hz`, `num_frequencies`, the seed's own
 // noise and scatter) whose hidden effect is `effect` ("<name>@<location>").
 void MakeEvalLoopCase(uint64_t seed, int num_frequencies, const std::string& effect, synthetic::HiddenEffectCase* c,
                       double fmax_hz = 600) {
-  *c = synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), seed, EvalLoopOptions(fmax_hz, num_frequencies));
+  *c = synthetic::MakeHiddenEffectCase(model::DefaultModelSpec(), seed, synthetic::EvalLoopCaseOptions(1, fmax_hz, num_frequencies));
   ASSERT_EQ(c->effects.size(), 1u);
   ASSERT_EQ(c->effects[0].name + "@" + c->effects[0].location, effect);
 }
@@ -365,7 +354,7 @@ TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
 // catalogue's one loss factor for the six DoF leaves that at 1.7x the floor.)
 TEST(RelocateEffects, MovesAnEffectToWhereTheDataPutIt) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1, EvalLoopOptions(150, 150));
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1, synthetic::EvalLoopCaseOptions(1, 150, 150));
   ASSERT_EQ(c.effects.size(), 1u);
   ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "structural-damping@rz");
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
@@ -408,7 +397,7 @@ TEST(RelocateEffects, MovesAnEffectToWhereTheDataPutIt) {
 // with the whole catalogue the loop ends at 1.67x the floor with the same effect.)
 TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectOptions o = EvalLoopOptions(150, 300);
+  synthetic::HiddenEffectOptions o = synthetic::EvalLoopCaseOptions(1, 150, 300);
   o.min_visibility = 8.0;
   const auto c = synthetic::MakeOutsideCatalogueCase(nominal, 5023, "cable", o);
   LoopOptions options = Options({"structural-damping"});

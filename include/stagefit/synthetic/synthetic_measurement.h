@@ -98,6 +98,11 @@ struct HiddenEffectOptions {
 };
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
 
+/// The options of a case of tests/bench/eval_loop: `num_effects`, 5 Hz to `fmax_hz` (150 or 600),
+/// `num_frequencies` (300-1200), noise 1-3 %, the rest HiddenEffectOptions' defaults. eval_loop draws
+/// the band and the number of frequencies from the seed; tests rebuild one of its cases with these.
+HiddenEffectOptions EvalLoopCaseOptions(int num_effects, double fmax_hz, int num_frequencies);
+
 /// How much `with` differs from `without` against the measurement noise of AddNoise with relative =
 /// absolute = `noise`: per frequency, |H_with - H_without|^2 / sigma^2 of every element (an element
 /// the model makes exactly zero gets sigma from 1e-3 of the strongest element's RMS, as a real test's
