@@ -524,7 +524,23 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
   side->weights = ReprojectedWeights(*side->values, P, Q);
   // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
   // Create(): it stops counting (header), decided on the whole grid (OnFrequencies()).
-  const Eigen::MatrixXi noise = element_reference_ ? element_reference_->NoiseElementsUnder(P, Q) : NoiseElements(side->weights);
+  Eigen::MatrixXi noise;
+  if (!element_reference_) {
+    noise = NoiseElements(side->weights);
+  } else {
+    NoiseElementsCache& cache = *noise_elements_cache_;
+    {
+      std::lock_guard<std::mutex> lock(cache.mutex);
+      if (cache.P.size() && cache.P == P && cache.Q == Q) noise = cache.noise;
+    }
+    if (!noise.size()) {
+      noise = element_reference_->NoiseElementsUnder(P, Q);
+      std::lock_guard<std::mutex> lock(cache.mutex);
+      cache.P = P;
+      cache.Q = Q;
+      cache.noise = noise;
+    }
+  }
   double sum_w2 = 0.0;
   for (size_t p = 0; p < points_.size(); ++p) {
     const ElementIndex idx = used_elements_[points_[p].element];
@@ -582,6 +598,7 @@ Eigen::MatrixXi Comparison::NoiseElementsUnder(const Eigen::MatrixXd& P, const E
 Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   Comparison c = *this;
   c.element_reference_ = element_reference_ ? element_reference_ : std::make_shared<const Comparison>(*this);
+  c.noise_elements_cache_ = std::make_shared<NoiseElementsCache>();
   const int nf = num_frequencies();
   std::vector<int> index(static_cast<size_t>(nf), -1);
   for (size_t k = 0; k < kept.size(); ++k) {

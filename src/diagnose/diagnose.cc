@@ -234,34 +234,32 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
                     local_hz, band_low_hz);
     }
   }
-  const std::vector<std::string> at_bounds = ParametersAtBounds(baseline, effect);
+  const std::vector<ParameterAtBound> at_bounds = ParametersAtBounds(baseline, effect);
   if (at_bounds.empty()) return {};
-  const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
-  const auto p = std::find_if(def.parameters.begin(), def.parameters.end(), [&](const auto& q) { return q.name == at_bounds[0]; });
-  model::Effect nominal = effect;
-  nominal.parameters = model::DefaultEffectParameters(baseline, effect.name, effect.location);
-  const model::EffectParameterRange range = model::EffectRange(baseline, nominal, p->name);
-  const char* unit = p->dimension == dim::kLength ? "m" : "rad";
-  return FormatText("%s = %.4g %s is at the bound of its search range [%.3g, %.3g] %s", p->name.c_str(),
-                    effect.parameters.at(p->name), unit, range.lower, range.upper, unit);
+  const ParameterAtBound& p = at_bounds[0];
+  return FormatText("%s = %.4g %s is at the bound of its search range [%.3g, %.3g] %s", p.name.c_str(), p.value, p.unit,
+                    p.lower, p.upper, p.unit);
 }
 
-std::vector<std::string> ParametersAtBounds(const model::ModelSpec& baseline, const model::Effect& effect) {
+std::vector<ParameterAtBound> ParametersAtBounds(const model::ModelSpec& baseline, const model::Effect& effect) {
   const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
   model::Effect nominal = effect;
   nominal.parameters = model::DefaultEffectParameters(baseline, effect.name, effect.location);
   // The parameters a fit sets (not the redundant or held ones, which stay where they were started).
   std::vector<int> positions;
   const std::vector<fit::ParameterSpec> specs = EffectParameterSpecs(baseline, nominal, {}, &positions);
-  std::vector<std::string> found;
+  std::vector<ParameterAtBound> found;
   for (size_t i = 0; i < specs.size(); ++i) {
     const size_t k = static_cast<size_t>(positions[i]);
-    if (def.parameters[k].dimension != dim::kLength && def.parameters[k].dimension != dim::kAngle) continue;
+    const bool length = def.parameters[k].dimension == dim::kLength;
+    if (!length && def.parameters[k].dimension != dim::kAngle) continue;
     const fit::ParameterSpec& b = specs[i];
     const double value = effect.parameters.at(def.parameters[k].name);
     if (!std::isfinite(b.upper - b.lower)) continue;
     const double margin = 0.01 * (b.upper - b.lower);
-    if (value <= b.lower + margin || value >= b.upper - margin) found.push_back(def.parameters[k].name);
+    if (value <= b.lower + margin || value >= b.upper - margin) {
+      found.push_back({def.parameters[k].name, value, b.lower, b.upper, length ? "m" : "rad"});
+    }
   }
   return found;
 }

@@ -14,10 +14,9 @@ std::vector<fit::ParameterSpec> EffectParameterSpecs(const model::ModelSpec& bas
                                                      const std::vector<std::string>& held,
                                                      std::vector<int>* positions) {
   const model::EffectDefinition& def = model::FindEffectDefinition(effect.name);
-  const std::vector<std::string> redundant = model::FixedEffectParameters(base, effect);
+  const std::vector<std::string> fixed = model::FixedEffectParameters(base, effect);
   auto left_out = [&](const std::string& name) {
-    return std::find(held.begin(), held.end(), name) != held.end() ||
-           std::find(redundant.begin(), redundant.end(), name) != redundant.end();
+    return std::find(held.begin(), held.end(), name) != held.end() || std::find(fixed.begin(), fixed.end(), name) != fixed.end();
   };
   std::vector<fit::ParameterSpec> specs;
   for (size_t k = 0; k < def.parameters.size(); ++k) {

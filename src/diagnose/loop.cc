@@ -345,11 +345,11 @@ std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given
     model::SetEffects(without, others);
     model::Effect& effect = effects[k];
     const auto nominal = model::DefaultEffectParameters(without, effect.name, effect.location);
-    const std::vector<std::string> at_bounds = ParametersAtBounds(without, effect);
-    for (const std::string& p : at_bounds) {
-      effect.parameters[p] = nominal.at(p);
-      model::HoldEffectParameter(&effect, p);
-      held.push_back(Key(effect) + "." + p);
+    const std::vector<ParameterAtBound> at_bounds = ParametersAtBounds(without, effect);
+    for (const ParameterAtBound& p : at_bounds) {
+      effect.parameters[p.name] = nominal.at(p.name);
+      model::HoldEffectParameter(&effect, p.name);
+      held.push_back(Key(effect) + "." + p.name);
     }
     // A channel's correction also has its turn held where the other channels' rigid motion sees the
     // channel (measurement::EstimateChannelDirections, no model involved): held at dx = 0, 29011's a1z
@@ -436,103 +436,103 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // Up to `max_rounds` rounds of diagnosis from `current`, each adding one effect at most; the first
   // one even at the floor when `first_at_floor`.
   auto run_rounds = [&](int max_rounds, bool first_at_floor) {
-  summary.stop_reason = "the round limit";
-  for (int round = 0; round < max_rounds; ++round) {
-    if (done(summary.history.back().error) && !(first_at_floor && round == 0)) {
-      summary.stop_reason = "at the noise floor";
-      break;
+    summary.stop_reason = "the round limit";
+    for (int round = 0; round < max_rounds; ++round) {
+      if (done(summary.history.back().error) && !(first_at_floor && round == 0)) {
+        summary.stop_reason = "at the noise floor";
+        break;
+      }
+      say("round " + std::to_string(round + 1) + ": diagnose");
+      const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
+      summary.last_verdict = diagnosis.verdict;
+      summary.last_diagnosis = diagnosis;
+      // The diagnosis refits the model without any new effect from its leader's parameters and from the
+      // model as given (its step 3); a lower error there is a better model than the one the loop holds
+      // (seed 5011: 0.0542 -> 0.0422, 1.04x the floor, and then no effect was needed). Taken when it lowers
+      // the error by more than 1 %: below that it is the same model, refitted a few iterations further.
+      bool baseline_taken = false;
+      if (const double e = comparison.Error(diagnosis.baseline); e < 0.99 * summary.history.back().error) {
+        current = diagnosis.baseline;
+        summary.history.push_back({"refit (the diagnosis' baseline)", "", e});
+        say("refit (the diagnosis' baseline): error " + std::to_string(e));
+        baseline_taken = true;
+      }
+      if (!diagnosis.effect_found) {
+        // The candidates were fitted from the round's first baseline; one that found no effect against
+        // the better model found after them is tried again from that model, in the next round (seed
+        // 11002: a payload on rz, the first fit at 1.55x, the diagnosis' baseline at 1.22x where every
+        // candidate, fitted from the 1.55x one, stayed above it).
+        if (baseline_taken && !done(summary.history.back().error) && round + 1 < max_rounds) continue;
+        summary.stop_reason = at_floor(summary.history.back().error) ? "at the noise floor" : "no effect of the catalogue helps";
+        break;
+      }
+      const Candidate& best = diagnosis.candidates[0];
+      if (dropped.count(Key(best.effect))) {
+        summary.stop_reason = "the best effect was dropped before as not needed";
+        break;
+      }
+      // The candidate's whole fitted state: its effect, the effects already in the model and the model's
+      // parameters as the diagnosis fitted them together.
+      model::ModelSpec with = ApplyCandidate(diagnosis, best);
+      const double with_error = comparison.Error(with);
+      if (!(with_error < summary.history.back().error)) {
+        summary.stop_reason = "the best effect does not lower the error of the model the loop holds";
+        break;
+      }
+      summary.history.push_back({"add " + Key(best.effect), best.with, with_error});
+      // Refit from two starts, the better kept: (a) the candidate's state, the model's parameters as the
+      // diagnosis left them; (b) the model as given with every effect added so far and the new one, all
+      // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
+      // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
+      // in that basin (1.9x the floor), from (b) it reaches the floor.
+      std::vector<model::Effect> all = added;
+      all.push_back(best.effect);
+      std::optional<EffectsFit> restart;
+      model::ModelSpec refitted = with;
+      RunConcurrently({[&] { FitParametersAndEffects(&refitted, comparison, options); },
+                       [&] { restart = FitFromAsGiven(spec, comparison, all, options); }});
+      const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
+      take_refit(&with, refitted, "refit");  // the model's and every effect's parameters
+      added = with.effects;
+      if (restart && restart_error < summary.history.back().error) {
+        summary.history.back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};
+        with = restart->spec;
+        added = restart->effects;
+        say("refit from the model as given: error " + std::to_string(restart_error));
+      }
+      current = with;
+      drop_unneeded(best.effect);
+      added = current.effects;
+      summary.effects_added = EffectTexts(current.effects);
     }
-    say("round " + std::to_string(round + 1) + ": diagnose");
-    const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
-    summary.last_verdict = diagnosis.verdict;
-    summary.last_diagnosis = diagnosis;
-    // The diagnosis refits the model without any new effect from its leader's parameters and from the
-    // model as given (its step 3); a lower error there is a better model than the one the loop holds
-    // (seed 5011: 0.0542 -> 0.0422, 1.04x the floor, and then no effect was needed). Taken when it lowers
-    // the error by more than 1 %: below that it is the same model, refitted a few iterations further.
-    bool baseline_taken = false;
-    if (const double e = comparison.Error(diagnosis.baseline); e < 0.99 * summary.history.back().error) {
-      current = diagnosis.baseline;
-      summary.history.push_back({"refit (the diagnosis' baseline)", "", e});
-      say("refit (the diagnosis' baseline): error " + std::to_string(e));
-      baseline_taken = true;
-    }
-    if (!diagnosis.effect_found) {
-      // The candidates were fitted from the round's first baseline; one that found no effect against
-      // the better model found after them is tried again from that model, in the next round (seed
-      // 11002: a payload on rz, the first fit at 1.55x, the diagnosis' baseline at 1.22x where every
-      // candidate, fitted from the 1.55x one, stayed above it).
-      if (baseline_taken && !done(summary.history.back().error) && round + 1 < max_rounds) continue;
-      summary.stop_reason = at_floor(summary.history.back().error) ? "at the noise floor" : "no effect of the catalogue helps";
-      break;
-    }
-    const Candidate& best = diagnosis.candidates[0];
-    if (dropped.count(Key(best.effect))) {
-      summary.stop_reason = "the best effect was dropped before as not needed";
-      break;
-    }
-    // The candidate's whole fitted state: its effect, the effects already in the model and the model's
-    // parameters as the diagnosis fitted them together.
-    model::ModelSpec with = ApplyCandidate(diagnosis, best);
-    const double with_error = comparison.Error(with);
-    if (!(with_error < summary.history.back().error)) {
-      summary.stop_reason = "the best effect does not lower the error of the model the loop holds";
-      break;
-    }
-    summary.history.push_back({"add " + Key(best.effect), best.with, with_error});
-    // Refit from two starts, the better kept: (a) the candidate's state, the model's parameters as the
-    // diagnosis left them; (b) the model as given with every effect added so far and the new one, all
-    // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
-    // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
-    // in that basin (1.9x the floor), from (b) it reaches the floor.
-    std::vector<model::Effect> all = added;
-    all.push_back(best.effect);
-    std::optional<EffectsFit> restart;
-    model::ModelSpec refitted = with;
-    RunConcurrently({[&] { FitParametersAndEffects(&refitted, comparison, options); },
-                     [&] { restart = FitFromAsGiven(spec, comparison, all, options); }});
-    const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
-    take_refit(&with, refitted, "refit");  // the model's and every effect's parameters
-    added = with.effects;
-    if (restart && restart_error < summary.history.back().error) {
-      summary.history.back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};
-      with = restart->spec;
-      added = restart->effects;
-      say("refit from the model as given: error " + std::to_string(restart_error));
-    }
-    current = with;
-    drop_unneeded(best.effect);
-    added = current.effects;
-    summary.effects_added = EffectTexts(current.effects);
-  }
   };
   run_rounds(options.max_rounds, false);
   // The steps after the rounds: effects moved, a turned channel, rigid limits; then the plausibility check.
   auto finish = [&] {
-  if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
-    const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
-    for (const std::string& change : moved) say("moved " + change);
-    if (!moved.empty()) {
-      say("after the moves: error " + std::to_string(summary.history.back().error));
-      // An effect added to make up for the misplaced one may not be needed beside it in its place.
+    if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
+      const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
+      for (const std::string& change : moved) say("moved " + change);
+      if (!moved.empty()) {
+        say("after the moves: error " + std::to_string(summary.history.back().error));
+        // An effect added to make up for the misplaced one may not be needed beside it in its place.
+        drop_unneeded(current.effects.back());
+      }
+      summary.effects_added = EffectTexts(current.effects);
+    }
+    if (at_floor(summary.history.back().error)) summary.stop_reason = "at the noise floor";
+    if (options.turned_channel_deg > 0 && AddTurnedChannel(measurement, comparison, options, &current, &summary)) {
+      // An effect of an earlier round may have stood in for the turn (seed 19010: a4x turned 15 degrees,
+      // first taken for a3x with its dx at the 5 cm bound; with a4x corrected the a3x one is not needed).
       drop_unneeded(current.effects.back());
+      summary.effects_added = EffectTexts(current.effects);
     }
-    summary.effects_added = EffectTexts(current.effects);
-  }
-  if (at_floor(summary.history.back().error)) summary.stop_reason = "at the noise floor";
-  if (options.turned_channel_deg > 0 && AddTurnedChannel(measurement, comparison, options, &current, &summary)) {
-    // An effect of an earlier round may have stood in for the turn (seed 19010: a4x turned 15 degrees,
-    // first taken for a3x with its dx at the 5 cm bound; with a4x corrected the a3x one is not needed).
-    drop_unneeded(current.effects.back());
-    summary.effects_added = EffectTexts(current.effects);
-  }
-  if (at_floor(summary.history.back().error)) {
-    for (const std::string& change : TakeRigidLimits(spec, comparison, options, &current, &summary.history)) {
-      say("took the rigid limit: " + change + ": error " + std::to_string(summary.history.back().error));
+    if (at_floor(summary.history.back().error)) {
+      for (const std::string& change : TakeRigidLimits(spec, comparison, options, &current, &summary.history)) {
+        say("took the rigid limit: " + change + ": error " + std::to_string(summary.history.back().error));
+      }
+      summary.effects_added = EffectTexts(current.effects);
     }
-    summary.effects_added = EffectTexts(current.effects);
-  }
-  summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
+    summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
   };
   finish();
   // At the floor with a length or turn at the bound of its range: the effect stands in for something

@@ -567,7 +567,9 @@ void HoldEffectParameter(Effect* effect, const std::string& parameter) {
     if (hold) held.push_back(p.name);
   }
   if (std::find(held.begin(), held.end(), parameter) == held.end()) {
-    throw InputError(effect->name + " has no parameter '" + parameter + "' to hold");
+    std::string names;
+    for (const auto& p : def.parameters) names += (names.empty() ? "" : ", ") + p.name;
+    throw InputError("held = '" + parameter + "' is not a parameter of " + effect->name + " (it has " + names + ")");
   }
   effect->held = held;
 }
@@ -608,13 +610,11 @@ Effect ParseEffect(const std::string& text, const ModelSpec& spec, const std::ve
         std::string name = item.substr(eq + 1);
         while (!name.empty() && name.front() == ' ') name.erase(name.begin());
         while (!name.empty() && name.back() == ' ') name.pop_back();
-        const bool known = std::any_of(def.parameters.begin(), def.parameters.end(), [&](const auto& p) { return p.name == name; });
-        if (!known) {
-          std::string names;
-          for (const auto& p : def.parameters) names += (names.empty() ? "" : ", ") + p.name;
-          throw InputError(what + ": held = '" + name + "' is not a parameter of " + e.name + " (it has " + names + ")");
+        try {
+          HoldEffectParameter(&e, name);
+        } catch (const InputError& error) {
+          throw InputError(what + ": " + error.what());
         }
-        HoldEffectParameter(&e, name);
         continue;
       }
       const EffectParameterSpec* ps = nullptr;

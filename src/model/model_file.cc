@@ -473,13 +473,12 @@ ModelSpec ParseModelToml(std::string_view text, const std::string& source) {
         if (const toml::array* list = h->as_array()) {
           for (const auto& x : *list) {
             const auto name = x.value<std::string>();
-            const bool known = name && std::any_of(def->parameters.begin(), def->parameters.end(),
-                                                   [&](const auto& p) { return p.name == *name; });
-            if (!known) {
+            try {
+              if (!name) throw InputError("a value that is not a string");
+              HoldEffectParameter(&e, *name);
+            } catch (const InputError&) {
               r.Error(&x, expected + "; got " + (name ? "'" + *name + "'" : std::string("a value that is not a string")));
-              continue;
             }
-            HoldEffectParameter(&e, *name);
           }
         } else {
           r.Error(h, expected);

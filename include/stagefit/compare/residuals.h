@@ -78,6 +78,7 @@
 #include <complex>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -400,8 +401,15 @@ class Comparison {
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the
-  // elements that stop counting under re-projection.
+  // elements that stop counting under re-projection, and its last decision (they depend on P and Q
+  // alone, and the fits of a search hold a channel's correction over many evaluations).
+  struct NoiseElementsCache {
+    std::mutex mutex;
+    Eigen::MatrixXd P, Q;
+    Eigen::MatrixXi noise;
+  };
   std::shared_ptr<const Comparison> element_reference_;
+  std::shared_ptr<NoiseElementsCache> noise_elements_cache_;
 };
 
 }  // namespace stagefit::compare

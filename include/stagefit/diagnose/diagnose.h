@@ -128,8 +128,14 @@ struct Candidate {
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0);
 
 /// The length and angle parameters of `effect` a fit sets that lie within 1 % of the bound of their
-/// search range on `baseline` (the check of ImplausibleBecause()), in catalogue order.
-std::vector<std::string> ParametersAtBounds(const model::ModelSpec& baseline, const model::Effect& effect);
+/// search range on `baseline` (the check of ImplausibleBecause()), in catalogue order, with that range.
+struct ParameterAtBound {
+  std::string name;
+  double value = 0;
+  double lower = 0, upper = 0;
+  const char* unit = "";  ///< "m" or "rad"
+};
+std::vector<ParameterAtBound> ParametersAtBounds(const model::ModelSpec& baseline, const model::Effect& effect);
 
 /// A leader and its rigid limit (model::EffectDefinition::rigid_limit) at the same location are told
 /// apart only when the limit's error is more than this share above the leader's.
