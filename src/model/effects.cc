@@ -344,6 +344,7 @@ std::vector<EffectDefinition> MakeCatalogue() {
     };
     d.local_modes_hz = ExtraBodyLocalModesHz;
     d.adds_mass = true;
+    d.repeatable = true;  // each its own local mode
     c.push_back(d);
   }
   {
@@ -695,6 +696,9 @@ std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<st
   std::vector<Effect> all;
   for (const auto& def : EffectCatalogue()) {
     for (const auto& location : EffectLocations(spec, def.name, channels)) {
+      const bool held = std::any_of(spec.effects.begin(), spec.effects.end(),
+                                    [&](const Effect& e) { return e.name == def.name && e.location == location; });
+      if (held && !def.repeatable) continue;
       all.push_back({def.name, location, DefaultEffectParameters(spec, def.name, location)});
     }
   }

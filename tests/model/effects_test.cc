@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -31,6 +32,32 @@ TEST(Effects, EveryEffectAppliesAtEveryLocationAndStaysValid) {
     ASSERT_EQ(spec.effects.size(), 1u);
     EXPECT_NO_THROW(AssembledModel::Assemble(spec)) << e.ToString();
   }
+}
+
+TEST(Effects, AnEffectAlreadyAtALocationIsNotTriedThereAgainUnlessASecondAddsSomething) {
+  ModelSpec spec = DefaultModelSpec();
+  const std::vector<std::string> channels = {"a1x", "h3"};
+  for (const char* text : {"coupled-stiffness@hexapod.Dx-Ry:k=1e5", "payload@hexapod:mass=1", "extra-body@rz",
+                           "structural-damping@ry", "sensor-geometry@a1x:ry=0.1", "delay@acquisition:tau=1e-5"}) {
+    ApplyEffect(spec, ParseEffect(text, spec, channels));
+  }
+  const auto effects = EnumerateEffects(spec, channels);
+  auto count = [&](const std::string& name, const std::string& location) {
+    return std::count_if(effects.begin(), effects.end(), [&](const Effect& e) { return e.name == name && e.location == location; });
+  };
+  // Two couplings of one pair are one coupling of their sum, two payloads on a body nearly one, two
+  // turns of a channel one turn, two delays one delay: none is tried a second time.
+  EXPECT_EQ(count("coupled-stiffness", "hexapod.Dx-Ry"), 0);
+  EXPECT_EQ(count("payload", "hexapod"), 0);
+  EXPECT_EQ(count("structural-damping", "ry"), 0);
+  EXPECT_EQ(count("sensor-geometry", "a1x"), 0);
+  EXPECT_EQ(count("delay", "acquisition"), 0);
+  // Every other place is still tried; a second extra body is a second local mode, and the first one's
+  // body is a new place for a payload or a third.
+  EXPECT_EQ(count("coupled-stiffness", "hexapod.Dy-Rx"), 1);
+  EXPECT_EQ(count("payload", "rz"), 1);
+  EXPECT_EQ(count("sensor-geometry", "h3"), 1);
+  EXPECT_EQ(count("extra-body", "rz"), 1);
 }
 
 TEST(Effects, PayloadConservesMassAndFirstMoment) {

@@ -85,6 +85,10 @@ struct EffectDefinition {
   /// applied to): no data can set them, and fits leave them at their value (a channel's correction:
   /// the offset along the channel's own direction and the turn about it). Empty when the effect has none.
   std::function<std::vector<std::string>(const ModelSpec& before, const Effect&)> redundant;
+  /// A second one at a location that holds one already adds what the first one's parameters cannot (an
+  /// extra body: a second local mode). Otherwise the two merge into one (two couplings of one pair
+  /// are one coupling of their sum; two turns of a channel are one turn), and no second one is tried.
+  bool repeatable = false;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
@@ -141,7 +145,8 @@ const ModelSpec& BaseOf(const ModelSpec& spec);
 /// The base with the first `count` effects of spec applied (the model effect `count` is applied to).
 ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count);
 
-/// Every catalogued effect at every location with default parameters (what diagnose tries).
+/// Every catalogued effect at every location with default parameters (what diagnose tries), except at
+/// a location where `spec` already holds the same effect and it is not EffectDefinition::repeatable.
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels = {});
 
 }  // namespace stagefit::model
