@@ -696,9 +696,11 @@ std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<st
   std::vector<Effect> all;
   for (const auto& def : EffectCatalogue()) {
     for (const auto& location : EffectLocations(spec, def.name, channels)) {
-      const bool held = std::any_of(spec.effects.begin(), spec.effects.end(),
-                                    [&](const Effect& e) { return e.name == def.name && e.location == location; });
-      if (held && !def.repeatable) continue;
+      if (!def.repeatable && std::any_of(spec.effects.begin(), spec.effects.end(), [&](const Effect& e) {
+            return e.name == def.name && e.location == location;
+          })) {
+        continue;  // the model has it there already
+      }
       all.push_back({def.name, location, DefaultEffectParameters(spec, def.name, location)});
     }
   }

@@ -52,8 +52,7 @@ TEST(Effects, AnEffectAlreadyAtALocationIsNotTriedThereAgainUnlessASecondAddsSom
   EXPECT_EQ(count("structural-damping", "ry"), 0);
   EXPECT_EQ(count("sensor-geometry", "a1x"), 0);
   EXPECT_EQ(count("delay", "acquisition"), 0);
-  // Every other place is still tried; a second extra body is a second local mode, and the first one's
-  // body is a new place for a payload or a third.
+  // Every other place is still tried, and a second extra body is a second local mode.
   EXPECT_EQ(count("coupled-stiffness", "hexapod.Dy-Rx"), 1);
   EXPECT_EQ(count("payload", "rz"), 1);
   EXPECT_EQ(count("sensor-geometry", "h3"), 1);
