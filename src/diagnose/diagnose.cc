@@ -570,6 +570,12 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       }
     } else if (e.name == "servo-stiffness") {
       add_try(e);
+      // Also from kServoStiffStart times the default k, the drive nearly rigid: from the default the
+      // screening's long first steps throw k away (35008 of eval_loop, ty.Dy a spring of 4.0e8 N/m,
+      // 150 Hz band: 0.252 after 4 iterations from 2e8, 0.046 from 2e9, the next candidate 0.049).
+      model::Effect stiff = e;
+      stiff.parameters["k"] = kServoStiffStart * e.parameters.at("k");
+      add_try(stiff);
       // Also from the k of a scan on the model as given, refined whatever its screening: 29009 (ty.Dy
       // a spring of 3.2e8 N/m, 150 Hz band) was screened from the default 2.0e8 at 0.213 against the
       // baseline's 0.058 (four iterations, its mode in the band) and never refined; its 30-iteration

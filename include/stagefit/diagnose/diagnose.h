@@ -270,6 +270,10 @@ std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const
 /// 3.2e8 N/m) 12.6 %, 31005 (ty.Dy, 1.2e8 N/m) 9.8 %; on eight effect-free cases 0-6.8 %.
 inline constexpr double kServoScanMinDrop = 0.03;
 
+/// A servo is also screened from this many times the catalogue's k (its mode about three times higher,
+/// the drive nearly rigid), where the short fit approaches it from the model without it.
+inline constexpr double kServoStiffStart = 10.0;
+
 /// For a servo-stiffness `servo` (its k the catalogue's default): ScanLogGrid over its k from 1/100 to
 /// 100 times that, in steps of 2 kModeScanStep (1 % in the mode's frequency), the servo added to
 /// `spec`; the k of the lowest error when that error is at least kServoScanMinDrop below `spec`'s,
