@@ -297,7 +297,7 @@ int main(int argc, char** argv) {
     const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c,
                                             outside_kinds[c % outside_kinds.size()], verbose);
     outside_clean += !o.claimed;
-    outside_added += o.added;
+    outside_added += o.added && !o.claimed;  // added, and not confirmed
     outside_floor += o.at_floor;
     outside_band += !o.at_floor && o.band;
     outside_element_band += !o.at_floor && o.element_band;
