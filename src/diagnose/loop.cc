@@ -106,9 +106,7 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
     if (!turned || e.residual_share < turned->residual_share) turned = &e;
   }
   if (!turned) return false;
-  for (const auto& e : current->effects) {
-    if (e.name == "sensor-geometry" && e.location == turned->name) return false;  // already corrected
-  }
+  if (model::HoldsEffect(*current, "sensor-geometry", turned->name)) return false;  // already corrected
   const auto euler = CalcChannelTurn(*turned);
   if (!euler) return false;
   model::Effect effect;

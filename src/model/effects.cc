@@ -692,15 +692,16 @@ ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count) {
   return out;
 }
 
+bool HoldsEffect(const ModelSpec& spec, const std::string& name, const std::string& location) {
+  return std::any_of(spec.effects.begin(), spec.effects.end(),
+                     [&](const Effect& e) { return e.name == name && e.location == location; });
+}
+
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels) {
   std::vector<Effect> all;
   for (const auto& def : EffectCatalogue()) {
     for (const auto& location : EffectLocations(spec, def.name, channels)) {
-      if (!def.repeatable && std::any_of(spec.effects.begin(), spec.effects.end(), [&](const Effect& e) {
-            return e.name == def.name && e.location == location;
-          })) {
-        continue;  // the model has it there already
-      }
+      if (!def.repeatable && HoldsEffect(spec, def.name, location)) continue;
       all.push_back({def.name, location, DefaultEffectParameters(spec, def.name, location)});
     }
   }

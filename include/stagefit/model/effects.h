@@ -145,8 +145,12 @@ const ModelSpec& BaseOf(const ModelSpec& spec);
 /// The base with the first `count` effects of spec applied (the model effect `count` is applied to).
 ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count);
 
+/// Whether `spec` holds the effect `name` at `location` already.
+bool HoldsEffect(const ModelSpec& spec, const std::string& name, const std::string& location);
+
 /// Every catalogued effect at every location with default parameters (what diagnose tries), except at
-/// a location where `spec` already holds the same effect and it is not EffectDefinition::repeatable.
+/// a location where `spec` already holds the same effect (HoldsEffect) and it is not
+/// EffectDefinition::repeatable.
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels = {});
 
 }  // namespace stagefit::model
