@@ -25,7 +25,9 @@
 // Fitting. The baseline is a full stiffness fit (fit::FitModel with its defaults: short first steps
 // and basin probes), so that a mistuned model is not blamed on a missing effect. Candidates are
 // screened with Ceres' long first steps (kDiagnoseTrustRegionRadius), which bring an effect's mass or
-// stiffness near its value within a few iterations; the refined ones are finished with basin probes.
+// stiffness near its value within a few iterations; a start already near its value (an extra body's
+// from the band where the error is, a payload's beside its long-step try) is screened with short ones,
+// which keep it there. The refined ones are finished with basin probes.
 
 #include <functional>
 #include <limits>
