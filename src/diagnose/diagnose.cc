@@ -483,9 +483,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // frequency, and a fit started a factor 1.3 or more away from it does not reach it (its peak and the
   // measured one do not overlap): a 1.8 kg body on the hexapod at 246 Hz, with its error 78 % in
   // 223-281 Hz, was fitted from 200 and 320 Hz down to 1.5 g and lost to a turned channel (seed 13008).
-  std::vector<double> extra_body_start_hz = {40.0, 70.0, 120.0, 200.0, 320.0};
-  constexpr size_t kNumFixedExtraBodyStarts = 5;  // the ones above; those after them come from the data
-  if (const auto hz = WorstBandCentreHz(comparison, summary.baseline)) extra_body_start_hz.push_back(*hz);
+  const std::vector<double> extra_body_fixed_start_hz = {40.0, 70.0, 120.0, 200.0, 320.0};
+  std::vector<double> extra_body_data_start_hz;  // where the data put the body's mode
+  if (const auto hz = WorstBandCentreHz(comparison, summary.baseline)) extra_body_data_start_hz.push_back(*hz);
   std::vector<Try> tries;
   std::vector<Try> scan_starts;  // refined without screening (ScanServoStiffness, ScanCouplingStiffness)
   std::vector<model::Effect> couplings;  // scanned after the loop below
@@ -554,7 +554,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // body's default mass on the baseline: 23005 (a 3.1 kg body at 95 Hz on the hexapod, 150 Hz band)
       // was started at 70, 120 Hz and its worst band and not found (6.0x the floor); the scan with a
       // 1 kg body has its minimum at 92 Hz, and fits from there reach the body's mass and local mode.
-      std::vector<double> starts_hz = extra_body_start_hz;
+      std::vector<double> data_starts_hz = extra_body_data_start_hz;
       const model::Effect at_default = e;
       if (const auto hz = ScanBandHz(search, [&](double hz) {
             model::Effect body = at_default;
@@ -563,7 +563,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
             model::ApplyEffect(with, body);
             return with;
           })) {
-        starts_hz.push_back(*hz);
+        data_starts_hz.push_back(*hz);
       }
       // The starts the data put near the body's mode (the worst band's centre, the scan's minimum) are
       // screened with short first steps, which keep them there; the five fixed ones with long steps, to
@@ -571,10 +571,14 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // band 223-281 Hz): from 250 Hz the long steps threw the mass to 0.46 kg in 4 iterations (0.345,
       // above the baseline's 0.322) and a 2.5 t body on a 7 Hz spring was refined instead (0.321); with
       // short ones the start kept 2.2 kg at 265 Hz (0.233) and its refinement reached 1.09x the floor.
-      for (size_t i = 0; i < starts_hz.size(); ++i) {
-        SetExtraBodyModesHz(&e, starts_hz[i], starts_hz[i]);  // its rocking modes at the same frequency
-        add_try(e, i >= kNumFixedExtraBodyStarts);
-      }
+      auto add_starts = [&](const std::vector<double>& starts_hz, bool short_steps) {
+        for (double hz : starts_hz) {
+          SetExtraBodyModesHz(&e, hz, hz);  // its rocking modes at the same frequency
+          add_try(e, short_steps);
+        }
+      };
+      add_starts(extra_body_fixed_start_hz, false);
+      add_starts(data_starts_hz, true);
     } else if (e.name == "servo-stiffness") {
       add_try(e);
       // Also from kServoStiffStart times the default k, the drive nearly rigid: from the default the

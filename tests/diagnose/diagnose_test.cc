@@ -39,6 +39,16 @@ void MakeEvalLoopCase(uint64_t seed, size_t num_effects, double fmax_hz, int num
   ASSERT_EQ(c->effects[index].name + "@" + c->effects[index].location, expected);
 }
 
+// Prints `summary`'s report, and checks that it found an effect and names `expected`
+// ("effect@location") first with an error below `max_error`.
+void ExpectLeader(const DiagnoseSummary& summary, const std::string& expected, double max_error) {
+  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
+  ASSERT_TRUE(summary.effect_found);
+  const Candidate& best = summary.candidates[0];
+  EXPECT_EQ(best.effect.name + "@" + best.effect.location, expected);
+  EXPECT_LT(best.error_after, max_error);
+}
+
 // `options` with the stages after the screening cut to refining its best `num_refined` (time): what
 // the screening ranks decides what is found.
 void CutToScreening(DiagnoseOptions* options, int num_refined) {
@@ -396,11 +406,8 @@ TEST(Diagnose, FindsAServoStiffnessFromItsScan) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const synthetic::HiddenEffectCase c = ServoCase29009();
   const DiagnoseSummary summary = Diagnose(nominal, c.measurement, QuietOptions());
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
   const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
-  ASSERT_TRUE(summary.effect_found);
-  EXPECT_EQ(summary.candidates[0].effect.name + "@" + summary.candidates[0].effect.location, "servo-stiffness@ty.Dy");
-  EXPECT_LT(summary.candidates[0].error_after, 1.02 * floor);
+  ExpectLeader(summary, "servo-stiffness@ty.Dy", 1.02 * floor);
 }
 
 // ty.Dy a spring of 4.0e8 N/m, 150 Hz band (seed 35008 of eval_loop). The scan on the model as given
@@ -418,11 +425,8 @@ TEST(Diagnose, ScreensAServoFromNearlyRigidToo) {
   options.effects = {"servo-stiffness", "joint-offset"};
   options.num_refined = 4;
   const DiagnoseSummary summary = Diagnose(nominal, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
   const double floor = compare::Comparison::Create(nominal, c.measurement).Error(c.truth);
-  ASSERT_TRUE(summary.effect_found);
-  EXPECT_EQ(summary.candidates[0].effect.name + "@" + summary.candidates[0].effect.location, "servo-stiffness@ty.Dy");
-  EXPECT_LT(summary.candidates[0].error_after, 1.02 * floor);
+  ExpectLeader(summary, "servo-stiffness@ty.Dy", 1.02 * floor);
 }
 
 // A 2.3 kg body at 270 Hz on the hexapod beside an 8.4 kg payload (seed 37011 of eval_loop, the
@@ -450,13 +454,9 @@ TEST(Diagnose, ScreensAnExtraBodyFromItsWorstBandWithShortSteps) {
   options.effects = {"extra-body"};
   CutToScreening(&options, 1);
   const DiagnoseSummary summary = Diagnose(round1.spec, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = comparison.Error(c.truth);
-  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_body")];
-  ASSERT_TRUE(summary.effect_found);
+  ASSERT_NO_FATAL_FAILURE(ExpectLeader(summary, "extra-body@hexapod", 1.2 * comparison.Error(c.truth)));
   const Candidate& best = summary.candidates[0];
-  EXPECT_EQ(best.effect.name + "@" + best.effect.location, "extra-body@hexapod");
-  EXPECT_LT(best.error_after, 1.2 * floor);
+  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_body")];
   EXPECT_NEAR(best.effect.parameters.at("mass"), body.mass_kg, 0.1 * body.mass_kg);
 }
 
@@ -478,14 +478,10 @@ TEST(Diagnose, ScreensAPayloadWithShortStepsToo) {
   options.effects = {"payload", "coupled-stiffness"};
   CutToScreening(&options, 2);
   const DiagnoseSummary summary = Diagnose(first_fit, c.measurement, options);
-  std::cout << summary.BriefReport() << "time " << summary.time_s << " s\n";
-  const double floor = comparison.Error(c.truth);
+  ASSERT_NO_FATAL_FAILURE(ExpectLeader(summary, "payload@hexapod", 1.2 * comparison.Error(c.truth)));
+  const Candidate& best = summary.candidates[0];
   const auto& payload = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
   const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
-  ASSERT_TRUE(summary.effect_found);
-  const Candidate& best = summary.candidates[0];
-  EXPECT_EQ(best.effect.name + "@" + best.effect.location, "payload@hexapod");
-  EXPECT_LT(best.error_after, 1.2 * floor);
   EXPECT_NEAR(best.effect.parameters.at("mass"), payload.mass_kg, 0.05 * payload.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), payload.com_W.z() - host.com_W.z(), 0.005);
 }
