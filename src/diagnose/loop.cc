@@ -92,18 +92,12 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
                       const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
                       LoopSummary* summary) {
   if (comparison.CorrectableChannels().empty()) return false;
-  std::vector<measurement::ChannelDirectionEstimate> estimates;
+  std::optional<measurement::ChannelDirectionEstimate> turned;
   try {
-    estimates = measurement::EstimateChannelDirections(measurement, comparison.frame_origin_W(),
-                                                       options.diagnose.comparison.fmin_hz,
-                                                       options.diagnose.comparison.fmax_hz);
+    turned = measurement::FindTurnedChannel(measurement, comparison.frame_origin_W(), options.turned_channel_deg * M_PI / 180,
+                                            options.diagnose.comparison.fmin_hz, options.diagnose.comparison.fmax_hz);
   } catch (const InputError&) {
     return false;
-  }
-  const measurement::ChannelDirectionEstimate* turned = nullptr;
-  for (const auto& e : estimates) {
-    if (!e.estimable || e.angle_rad * 180 / M_PI <= options.turned_channel_deg) continue;
-    if (!turned || e.residual_share < turned->residual_share) turned = &e;
   }
   if (!turned) return false;
   if (model::HoldsEffect(*current, "sensor-geometry", turned->name)) return false;  // already corrected
@@ -232,7 +226,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     // correction beside it (1.04x) and the servo dropped for not lowering that by 5 % (1.07x without it,
     // 0.019 off the truth).
     const bool needed_at_floor = std::isfinite(round_threshold) && with_error <= round_threshold && trial_error > round_threshold;
-    const bool earns = (delta_bic < 0 && with_error < (1 - options.diagnose.min_relative_improvement) * trial_error) || needed_at_floor;
+    const bool earns = delta_bic < 0 && (with_error < (1 - options.diagnose.min_relative_improvement) * trial_error || needed_at_floor);
     if (earns || !std::isfinite(trial_error)) {
       ++k;
       continue;

@@ -532,4 +532,37 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
   return estimates;
 }
 
+std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
+                                                          double min_angle_rad, double fmin_hz, double fmax_hz) {
+  const std::vector<ChannelDirectionEstimate> estimates = EstimateChannelDirections(raw, default_p_WXo, fmin_hz, fmax_hz);
+  std::optional<ChannelDirectionEstimate> best;
+  double best_others = std::numeric_limits<double>::infinity();
+  // Whether `e`, whose correction leaves the others at most `others` off, is more likely than `best`.
+  auto better = [&](const ChannelDirectionEstimate& e, double others) {
+    if (!best) return true;
+    const bool consistent = others <= min_angle_rad, best_consistent = best_others <= min_angle_rad;
+    if (consistent != best_consistent) return consistent;
+    if (consistent || others == best_others) return e.residual_share < best->residual_share;
+    return others < best_others;
+  };
+  for (const auto& e : estimates) {
+    if (!e.estimable || !(e.angle_rad > min_angle_rad)) continue;
+    // The channel's declared direction replaced by its estimate, the others estimated again.
+    FrfData corrected = raw;
+    auto& channels = e.is_impact ? corrected.inputs : corrected.outputs;
+    for (auto& c : channels) {
+      if (c.name == e.name) c.direction_W = e.estimated_W;
+    }
+    double others = 0.0;
+    for (const auto& o : EstimateChannelDirections(corrected, default_p_WXo, fmin_hz, fmax_hz)) {
+      if (o.estimable && !(o.name == e.name && o.is_impact == e.is_impact)) others = std::max(others, o.angle_rad);
+    }
+    if (better(e, others)) {
+      best = e;
+      best_others = others;
+    }
+  }
+  return best;
+}
+
 }  // namespace stagefit::measurement

@@ -43,7 +43,8 @@ struct LoopOptions {
   /// The turned-channel step, after the rounds: a channel whose direction, as the other channels'
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
-  /// estimate leaves the least residual, is added as a sensor-geometry correction held at that turn,
+  /// correction leaves the others closest to their declared directions (measurement::FindTurnedChannel;
+  /// ties to the least residual), is added as a sensor-geometry correction held at that turn,
   /// and the model refitted; kept unless the error rises by more than `turned_channel_max_rise`. In
   /// compliance space a turned accelerometer is often absorbed by the stiffnesses at the noise floor
   /// (15 degrees: 1.03x the floor, 2.8 % off the noise-free truth), while its direction estimate stands
@@ -111,7 +112,9 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 /// by the rule that added it (DiagnoseOptions::min_relative_improvement and delta BIC against the model
 /// without it). The model is refitted without it from `current`'s state and from the model as given
 /// (every remaining effect refitted with the model, FitEffects), the better kept; where the effect does
-/// not lower the error by that share it is dropped: `current` becomes the model without it and a
+/// not lower the error by that share it is dropped, unless `current` is within
+/// LoopOptions::rounds_above_times_floor of the noise floor with it and above that without it (near the
+/// floor no effect lowers the error by 5 %): `current` becomes the model without it and a
 /// "drop" step with its error is appended to `history` (whose last step holds `current`'s error).
 /// A first round names what mimics the strongest effect best, a later one can name the truth beside it
 /// (docs/diagnose.md). Returns the "<effect>@<location>" of the dropped effects.

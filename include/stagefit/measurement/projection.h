@@ -22,6 +22,7 @@
 #include <complex>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -182,5 +183,21 @@ struct ChannelDirectionEstimate {
 std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
                                                                 double fmin_hz = 0.0,
                                                                 double fmax_hz = std::numeric_limits<double>::infinity());
+
+/// The channel most likely turned, of those EstimateChannelDirections() puts more than `min_angle_rad`
+/// off their declared direction. Each is corrected in turn (its declared direction replaced by its
+/// estimate) and the others estimated again: of the corrections that leave every other channel within
+/// `min_angle_rad`, the channel with the least residual_share; when none does, the one that leaves the
+/// largest of the others' angles smallest. A turned channel corrupts the motion the channels sharing
+/// its DoF see, so they look turned too, by less, and can have as little residual: on seed 45020 of
+/// eval_loop a1x was turned 23 degrees and a4x estimated 10.4 degrees off with residual share 0.0020
+/// against a1x's 0.0021; corrected, a1x leaves the others near their declared directions, a4x leaves
+/// a1x off. The four vertical channels observe three DoF with one redundancy, and correcting either of
+/// two of them can leave the others consistent (seed 60040: a3z turned 12 degrees, a1z and a3z both
+/// 11.7 degrees off): the residual decides there (0.0037 against 0.0112). nullopt when no channel is
+/// that far off. Throws as EstimateChannelDirections().
+std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
+                                                          double min_angle_rad, double fmin_hz = 0.0,
+                                                          double fmax_hz = std::numeric_limits<double>::infinity());
 
 }  // namespace stagefit::measurement
