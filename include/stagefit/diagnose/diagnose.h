@@ -26,7 +26,8 @@
 // and basin probes), so that a mistuned model is not blamed on a missing effect. Candidates are
 // screened with Ceres' long first steps (kDiagnoseTrustRegionRadius), which bring an effect's mass or
 // stiffness near its value within a few iterations; a start already near its value (an extra body's
-// from the band where the error is, a payload's beside its long-step try) is screened with short ones,
+// from the band where the error is, a payload's and a servo's stiff start beside their long-step
+// tries) is screened with short ones,
 // which keep it there. The refined ones are finished with basin probes.
 
 #include <functional>
@@ -273,7 +274,8 @@ std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const
 inline constexpr double kServoScanMinDrop = 0.03;
 
 /// A servo is also screened from this many times the catalogue's k (its mode about three times higher,
-/// the drive nearly rigid), where the short fit approaches it from the model without it.
+/// the drive nearly rigid), where the short fit approaches it from the model without it; from there
+/// with long and with short first steps.
 inline constexpr double kServoStiffStart = 10.0;
 
 /// For a servo-stiffness `servo` (its k the catalogue's default): ScanLogGrid over its k from 1/100 to
