@@ -59,6 +59,29 @@ void CutToScreening(DiagnoseOptions* options, int num_refined) {
   options->num_finished = 0;
 }
 
+// eval_loop's case `seed` (MakeEvalLoopCase, its first effect `expected`) diagnosed with `effects` from
+// the loop's first fit (band continuation), the stages after the screening cut to its best two
+// (CutToScreening); `truth_error` is the noise-free truth's error.
+struct FirstFitDiagnosis {
+  synthetic::HiddenEffectCase c;
+  DiagnoseSummary summary;
+  double truth_error = 0;
+};
+void DiagnoseFromFirstFit(uint64_t seed, double fmax_hz, int num_frequencies, const std::string& expected,
+                          const std::vector<std::string>& effects, FirstFitDiagnosis* run) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(seed, 1, fmax_hz, num_frequencies, 0, expected, &run->c));
+  DiagnoseOptions options = QuietOptions();
+  const compare::Comparison comparison = compare::Comparison::Create(nominal, run->c.measurement, options.comparison);
+  model::ModelSpec first_fit = nominal;
+  fit::FitModelWithBandContinuation(first_fit, run->c.measurement, options.comparison, comparison,
+                                    model::MatchParameters(first_fit, options.params), fit::FitOptions{});
+  options.effects = effects;
+  CutToScreening(&options, 2);
+  run->summary = Diagnose(first_fit, run->c.measurement, options);
+  run->truth_error = comparison.Error(run->c.truth);
+}
+
 // One drawn effect (seed: synthetic::MakeHiddenEffectCase with default options), checked to be the
 // expected one, diagnosed with `effects` (empty: the whole catalogue); `floor` is the truth's error.
 struct HiddenCaseRun {
@@ -436,20 +459,12 @@ TEST(Diagnose, ScreensAServoFromNearlyRigidToo) {
 // body on rz was taken at 1.08-1.09x. It is also screened from there with short first steps, which
 // keep it near its value; refined first, it reaches the floor.
 TEST(Diagnose, ScreensAServoWithShortStepsToo) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectCase c;
-  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(37001, 1, 150, 1001, 0, "servo-stiffness@ty.Dy", &c));
-  DiagnoseOptions options = QuietOptions();
-  const compare::Comparison comparison = compare::Comparison::Create(nominal, c.measurement, options.comparison);
-  model::ModelSpec first_fit = nominal;  // the loop's first fit
-  fit::FitModelWithBandContinuation(first_fit, c.measurement, options.comparison, comparison,
-                                    model::MatchParameters(first_fit, options.params), fit::FitOptions{});
-  options.effects = {"servo-stiffness", "joint-offset", "payload"};
-  CutToScreening(&options, 2);
-  const DiagnoseSummary summary = Diagnose(first_fit, c.measurement, options);
-  ASSERT_NO_FATAL_FAILURE(ExpectLeader(summary, "servo-stiffness@ty.Dy", 1.05 * comparison.Error(c.truth)));
-  const double truth_k = c.truth.joints[model::FindJoint(c.truth, "ty")].stiffness[1];
-  EXPECT_LT(std::abs(std::log(summary.candidates[0].effect.parameters.at("k") / truth_k)), std::log(1.2));
+  FirstFitDiagnosis run;
+  ASSERT_NO_FATAL_FAILURE(
+      DiagnoseFromFirstFit(37001, 150, 1001, "servo-stiffness@ty.Dy", {"servo-stiffness", "joint-offset", "payload"}, &run));
+  ASSERT_NO_FATAL_FAILURE(ExpectLeader(run.summary, "servo-stiffness@ty.Dy", 1.05 * run.truth_error));
+  const double truth_k = run.c.truth.joints[model::FindJoint(run.c.truth, "ty")].stiffness[1];
+  EXPECT_LT(std::abs(std::log(run.summary.candidates[0].effect.parameters.at("k") / truth_k)), std::log(1.2));
 }
 
 // A 2.3 kg body at 270 Hz on the hexapod beside an 8.4 kg payload (seed 37011 of eval_loop, the
@@ -490,21 +505,12 @@ TEST(Diagnose, ScreensAnExtraBodyFromItsWorstBandWithShortSteps) {
 // was never refined, and in the loop nothing was found (9.0x); with short ones it screens at 0.10-0.12,
 // is refined first and reaches the floor with its mass and height.
 TEST(Diagnose, ScreensAPayloadWithShortStepsToo) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  synthetic::HiddenEffectCase c;
-  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(41000, 1, 600, 924, 0, "payload@hexapod", &c));
-  DiagnoseOptions options = QuietOptions();
-  const compare::Comparison comparison = compare::Comparison::Create(nominal, c.measurement, options.comparison);
-  model::ModelSpec first_fit = nominal;  // the loop's first fit
-  fit::FitModelWithBandContinuation(first_fit, c.measurement, options.comparison, comparison,
-                                    model::MatchParameters(first_fit, options.params), fit::FitOptions{});
-  options.effects = {"payload", "coupled-stiffness"};
-  CutToScreening(&options, 2);
-  const DiagnoseSummary summary = Diagnose(first_fit, c.measurement, options);
-  ASSERT_NO_FATAL_FAILURE(ExpectLeader(summary, "payload@hexapod", 1.2 * comparison.Error(c.truth)));
-  const Candidate& best = summary.candidates[0];
-  const auto& payload = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
-  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
+  FirstFitDiagnosis run;
+  ASSERT_NO_FATAL_FAILURE(DiagnoseFromFirstFit(41000, 600, 924, "payload@hexapod", {"payload", "coupled-stiffness"}, &run));
+  ASSERT_NO_FATAL_FAILURE(ExpectLeader(run.summary, "payload@hexapod", 1.2 * run.truth_error));
+  const Candidate& best = run.summary.candidates[0];
+  const auto& payload = run.c.truth.bodies[model::FindBody(run.c.truth, "hidden_payload")];
+  const auto& host = run.c.truth.bodies[model::FindBody(run.c.truth, "hexapod")];
   EXPECT_NEAR(best.effect.parameters.at("mass"), payload.mass_kg, 0.05 * payload.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), payload.com_W.z() - host.com_W.z(), 0.005);
 }
