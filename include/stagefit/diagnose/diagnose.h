@@ -27,8 +27,8 @@
 // screened with Ceres' long first steps (kDiagnoseTrustRegionRadius), which bring an effect's mass or
 // stiffness near its value within a few iterations; a start already near its value (an extra body's
 // from the band where the error is, a payload's and a servo's stiff start beside their long-step
-// tries) is screened with short ones,
-// which keep it there. The refined ones are finished with basin probes.
+// tries) is screened with short ones, which keep it there. The refined ones are finished with basin
+// probes.
 
 #include <functional>
 #include <limits>

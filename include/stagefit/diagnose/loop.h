@@ -43,8 +43,8 @@ struct LoopOptions {
   /// The turned-channel step, after the rounds: a channel whose direction, as the other channels'
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
-  /// correction leaves the others closest to their declared directions (measurement::FindTurnedChannel;
-  /// ties to the least residual), is added as a sensor-geometry correction held at that turn,
+  /// correction leaves the others consistent (measurement::FindTurnedChannel), is added as a
+  /// sensor-geometry correction held at that turn,
   /// and the model refitted; kept unless the error rises by more than `turned_channel_max_rise`. In
   /// compliance space a turned accelerometer is often absorbed by the stiffnesses at the noise floor
   /// (15 degrees: 1.03x the floor, 2.8 % off the noise-free truth), while its direction estimate stands
