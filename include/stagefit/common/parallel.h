@@ -17,17 +17,20 @@ int MaxThreads();
 /// Sets MaxThreads() for the whole program; 0 returns to the default above.
 void SetMaxThreads(int threads);
 
-/// Runs task(t, worker) for every t in [0, num_tasks) on W = WorkersFor(num_tasks) threads of a pool
-/// kept for the program's life, the calling thread being worker 0: worker w takes t = w, w + W, ...
-/// in increasing order. Called from inside a task, or while another thread's ParallelFor holds the
-/// pool, it runs every task on the calling thread as worker 0. Returns when all are done. An
-/// exception thrown by a task is rethrown here (the first one, after every thread has finished).
+/// Runs task(t, worker) for every t in [0, num_tasks) on up to W = WorkersFor(num_tasks) threads of a
+/// pool kept for the program's life, and returns when all are done. The calling thread is worker 0;
+/// idle threads join as workers 1 .. W-1 and every worker takes the next task when it is done with
+/// one, so which worker runs which task varies from run to run: a task must compute the same numbers
+/// whichever worker runs it. Two tasks running at the same time have different worker numbers (for
+/// per-worker scratch). Called from inside a task (nested), it runs on the calling thread, and threads
+/// that are idle or waiting for their own last tasks help. The first exception a task throws is
+/// rethrown here after the running tasks have finished; the tasks not yet taken are not run.
 void ParallelFor(int num_tasks, const std::function<void(int task, int worker)>& task);
 
 /// Runs each of `jobs` once, concurrently on the pool's threads (ParallelFor over them): for
 /// independent fits, each of which spreads its own FRF evaluations well over fewer than all cores.
-/// Inside a job, a ParallelFor runs on the job's thread alone. The first exception a job throws is
-/// rethrown after every job has finished.
+/// When one job finishes first, its thread helps the others' inner loops. Every job runs; the first
+/// (in order) exception a job throws is rethrown after all have finished.
 void RunConcurrently(const std::vector<std::function<void()>>& jobs);
 
 /// The number of workers ParallelFor(num_tasks, ...) uses.
