@@ -336,8 +336,8 @@ std::map<std::string, ChannelTurn> EstimateChannelTurns(const measurement::FrfDa
   return turns;
 }
 
-/// Every k-th of `count` frequencies, k the smallest step that leaves at most `max_frequencies` of
-/// them; nullopt when there are no more than that (or max_frequencies <= 0).
+}  // namespace
+
 std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencies) {
   if (max_frequencies <= 0 || count <= max_frequencies) return std::nullopt;
   const int step = (count + max_frequencies - 1) / max_frequencies;
@@ -345,8 +345,6 @@ std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencie
   for (int k = 0; k < count; k += step) kept.push_back(k);
   return kept;
 }
-
-}  // namespace
 
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
                     const std::vector<std::string>& params, const EffectFitOptions& effect_options) {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 #include "stagefit/common/units.h"
 #include "stagefit/model/effects.h"
 
@@ -313,26 +314,32 @@ FitSummary FitModelWithBandContinuation(model::ModelSpec& spec, const measuremen
   const Eigen::VectorXd& f = comparison.frequency_hz();
   const double f_low = f(0), f_high = f(f.size() - 1);
   const double error_before = comparison.Error(spec);
+  // The two routes are independent: run side by side (each one's FRF evaluations helped by the other's
+  // thread once it is done).
   // Route 1: the stages, each from the previous one's result.
   model::ModelSpec staged = spec;
-  const auto history = spec.history;
   std::vector<double> edges;
   for (double edge = 8.0 * f_low; edge < f_high / 1.25; edge *= 2.5) edges.push_back(edge);
-  for (double edge : edges) {
-    compare::ComparisonOptions stage_options = comparison_options;
-    stage_options.fmax_hz = edge;
-    try {
-      const compare::Comparison stage = compare::Comparison::Create(staged, measurement, stage_options);
-      FitModel(staged, stage, parameters, options, bounds);
-    } catch (const InputError&) {
-      continue;  // too few points or no significant element below the edge
+  FitSummary via_stages;
+  auto run_stages = [&] {
+    const auto history = spec.history;
+    for (double edge : edges) {
+      compare::ComparisonOptions stage_options = comparison_options;
+      stage_options.fmax_hz = edge;
+      try {
+        const compare::Comparison stage = compare::Comparison::Create(staged, measurement, stage_options);
+        FitModel(staged, stage, parameters, options, bounds);
+      } catch (const InputError&) {
+        continue;  // too few points or no significant element below the edge
+      }
     }
-  }
-  staged.history = history;
-  FitSummary via_stages = FitModel(staged, comparison, parameters, options, bounds);
+    staged.history = history;
+    via_stages = FitModel(staged, comparison, parameters, options, bounds);
+  };
   // Route 2: directly on the whole band from the model as given.
   model::ModelSpec direct = spec;
-  FitSummary at_once = FitModel(direct, comparison, parameters, options, bounds);
+  FitSummary at_once;
+  RunConcurrently({run_stages, [&] { at_once = FitModel(direct, comparison, parameters, options, bounds); }});
   const bool stages_better = via_stages.final_error < at_once.final_error;
   FitSummary& kept = stages_better ? via_stages : at_once;
   spec = stages_better ? staged : direct;

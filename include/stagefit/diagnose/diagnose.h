@@ -310,6 +310,11 @@ struct EffectFit {
   fit::FitSummary summary;
   model::ModelSpec spec;
 };
+/// Every k-th of `count` frequencies, k the smallest step that leaves at most `max_frequencies` of
+/// them; nullopt when there are no more than that (or max_frequencies <= 0). The grid a diagnosis
+/// searches on (DiagnoseOptions::max_search_frequencies) and the loop's refits start on.
+std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencies);
+
 struct EffectFitOptions {
   int max_iterations = 30;
   bool probe_basins = false;           ///< end with fit::SolveWithProbes' basin probes
