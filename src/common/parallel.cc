@@ -105,10 +105,12 @@ class Pool {
     const std::thread::id me = std::this_thread::get_id();
     for (Job* job : jobs_) {
       if (job->order <= after || job->next >= job->num_tasks) continue;
-      const auto it = std::find(job->helpers.begin(), job->helpers.end(), me);
-      if (it == job->helpers.end() && static_cast<int>(job->helpers.size()) + 1 >= job->workers) continue;
-      if (it == job->helpers.end()) job->helpers.push_back(me);
-      *worker = static_cast<int>(std::find(job->helpers.begin(), job->helpers.end(), me) - job->helpers.begin()) + 1;
+      auto it = std::find(job->helpers.begin(), job->helpers.end(), me);
+      if (it == job->helpers.end()) {
+        if (static_cast<int>(job->helpers.size()) + 1 >= job->workers) continue;  // every worker number taken
+        it = job->helpers.insert(job->helpers.end(), me);
+      }
+      *worker = static_cast<int>(it - job->helpers.begin()) + 1;
       *t = job->next++;
       return job;
     }

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <sstream>
 
 #include "stagefit/common/error.h"
@@ -315,7 +316,15 @@ FitSummary FitModelWithBandContinuation(model::ModelSpec& spec, const measuremen
   const double f_low = f(0), f_high = f(f.size() - 1);
   const double error_before = comparison.Error(spec);
   // The two routes are independent: run side by side (each one's FRF evaluations helped by the other's
-  // thread once it is done).
+  // thread once it is done), their progress reported one call at a time.
+  std::mutex progress_mutex;
+  FitOptions route_options = options;
+  if (options.progress) {
+    route_options.progress = [&](const FitProgress& p) {
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      options.progress(p);
+    };
+  }
   // Route 1: the stages, each from the previous one's result.
   model::ModelSpec staged = spec;
   std::vector<double> edges;
@@ -328,18 +337,18 @@ FitSummary FitModelWithBandContinuation(model::ModelSpec& spec, const measuremen
       stage_options.fmax_hz = edge;
       try {
         const compare::Comparison stage = compare::Comparison::Create(staged, measurement, stage_options);
-        FitModel(staged, stage, parameters, options, bounds);
+        FitModel(staged, stage, parameters, route_options, bounds);
       } catch (const InputError&) {
         continue;  // too few points or no significant element below the edge
       }
     }
     staged.history = history;
-    via_stages = FitModel(staged, comparison, parameters, options, bounds);
+    via_stages = FitModel(staged, comparison, parameters, route_options, bounds);
   };
   // Route 2: directly on the whole band from the model as given.
   model::ModelSpec direct = spec;
   FitSummary at_once;
-  RunConcurrently({run_stages, [&] { at_once = FitModel(direct, comparison, parameters, options, bounds); }});
+  RunConcurrently({run_stages, [&] { at_once = FitModel(direct, comparison, parameters, route_options, bounds); }});
   const bool stages_better = via_stages.final_error < at_once.final_error;
   FitSummary& kept = stages_better ? via_stages : at_once;
   spec = stages_better ? staged : direct;

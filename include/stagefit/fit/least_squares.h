@@ -178,7 +178,8 @@ struct FitOptions {
   /// case at 100x its initial value, the truth at 0.63x: 1.23x the noise floor before, 1.05x after a
   /// 20-iteration refit from its initial value).
   int bound_reset_iterations = 20;
-  /// Called after each iteration; the library never prints. May be empty.
+  /// Called after each iteration; the library never prints. May be empty. Fits the library runs side
+  /// by side (FitModelWithBandContinuation's two routes) call it one at a time.
   std::function<void(const FitProgress&)> progress;
 };
 
