@@ -336,14 +336,26 @@ std::map<std::string, ChannelTurn> EstimateChannelTurns(const measurement::FrfDa
   return turns;
 }
 
-}  // namespace
-
+/// Every k-th of `count` frequencies, k the smallest step that leaves at most `max_frequencies` of
+/// them; nullopt when there are no more than that (or max_frequencies <= 0).
 std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencies) {
   if (max_frequencies <= 0 || count <= max_frequencies) return std::nullopt;
   const int step = (count + max_frequencies - 1) / max_frequencies;
   std::vector<int> kept;
   for (int k = 0; k < count; k += step) kept.push_back(k);
   return kept;
+}
+
+}  // namespace
+
+std::optional<compare::Comparison> ThinnedComparison(const compare::Comparison& comparison, int max_frequencies) {
+  const auto kept = ThinnedFrequencies(comparison.num_frequencies(), max_frequencies);
+  if (!kept) return std::nullopt;
+  try {
+    return comparison.OnFrequencies(*kept);
+  } catch (const InputError&) {
+    return std::nullopt;  // no compared point left on the thinned grid
+  }
 }
 
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
@@ -437,14 +449,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // The grid the candidates are searched on (DiagnoseOptions::max_search_frequencies): a thinned one
   // ranks them as well at a fraction of the cost; the leaders are finished and every candidate is scored
   // on all frequencies.
-  std::optional<compare::Comparison> thinned_comparison;
-  if (auto kept = ThinnedFrequencies(comparison.num_frequencies(), options.max_search_frequencies)) {
-    try {
-      thinned_comparison = comparison.OnFrequencies(*kept);
-    } catch (const InputError&) {
-      // No compared point left on the thinned grid: search on all.
-    }
-  }
+  const std::optional<compare::Comparison> thinned_comparison = ThinnedComparison(comparison, options.max_search_frequencies);
   const compare::Comparison& search = thinned_comparison ? *thinned_comparison : comparison;
 
   // 2. Candidates: every effect at every location (extra bodies from five starting local modes,

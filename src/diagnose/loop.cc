@@ -49,19 +49,11 @@ std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const
     // On all 1199 frequencies of seed 45010 this refit took 10-12 s of each round beside 1-3 s for the
     // refit from the candidate's state: its last 80 of 100 iterations crawled (0.1242 -> 0.1233, where
     // 4 iterations reach 0.1241); the next round's baseline fit goes on from where it stops.
-    if (const auto kept = ThinnedFrequencies(comparison.num_frequencies(), options.diagnose.max_search_frequencies)) {
-      std::optional<compare::Comparison> thinned;
-      try {
-        thinned = comparison.OnFrequencies(*kept);
-      } catch (const InputError&) {
-        // No compared point left on the thinned grid: fitted on all.
-      }
-      if (thinned) {
-        const EffectsFit coarse = FitEffects(model::BaseOf(as_given), *thinned, effects, options.diagnose.params, eo);
-        eo.probe_basins = false;
-        eo.max_iterations = options.diagnose.finish_iterations;
-        return FitEffects(model::BaseOf(coarse.spec), comparison, coarse.effects, options.diagnose.params, eo);
-      }
+    if (const auto thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies)) {
+      const EffectsFit coarse = FitEffects(model::BaseOf(as_given), *thinned, effects, options.diagnose.params, eo);
+      eo.probe_basins = false;
+      eo.max_iterations = options.diagnose.finish_iterations;
+      return FitEffects(model::BaseOf(coarse.spec), comparison, coarse.effects, options.diagnose.params, eo);
     }
     return FitEffects(model::BaseOf(as_given), comparison, effects, options.diagnose.params, eo);
   } catch (const std::exception&) {

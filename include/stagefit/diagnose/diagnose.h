@@ -310,10 +310,12 @@ struct EffectFit {
   fit::FitSummary summary;
   model::ModelSpec spec;
 };
-/// Every k-th of `count` frequencies, k the smallest step that leaves at most `max_frequencies` of
-/// them; nullopt when there are no more than that (or max_frequencies <= 0). The grid a diagnosis
-/// searches on (DiagnoseOptions::max_search_frequencies) and the loop's refits start on.
-std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencies);
+
+/// `comparison` on every k-th of its frequencies, k the smallest step that leaves at most
+/// `max_frequencies` of them: the grid a diagnosis searches on (DiagnoseOptions::max_search_frequencies)
+/// and the loop's refit from the model as given starts on. nullopt when it has no more than that (or
+/// max_frequencies <= 0), or when no compared point is left on the thinned grid.
+std::optional<compare::Comparison> ThinnedComparison(const compare::Comparison& comparison, int max_frequencies);
 
 struct EffectFitOptions {
   int max_iterations = 30;
