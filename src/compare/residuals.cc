@@ -167,6 +167,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   const int nf = static_cast<int>(rows.size());
   c.frequency_hz_.resize(nf);
   for (int k = 0; k < nf; ++k) c.frequency_hz_(k) = measurement.frequency_hz(rows[k]);
+  c.frf_options_.lowest_frequency_hz = c.frequency_hz_.minCoeff();  // the probe check looks from here up
 
   // Raw SNR per point (infinite = noise-free).
   const bool use_coherence = options.use_coherence && measurement.has_coherence();
@@ -614,6 +615,7 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   };
   c.frequency_hz_.resize(static_cast<int>(kept.size()));
   for (size_t k = 0; k < kept.size(); ++k) c.frequency_hz_(static_cast<int>(k)) = frequency_hz_(kept[k]);
+  c.frf_options_.lowest_frequency_hz = c.frequency_hz_.minCoeff();
   c.measured_ = subset(measured_);
   c.weights_ = subset(weights_);
   c.snr_ = subset(snr_);

@@ -29,12 +29,13 @@ struct Layout {
   int cols() const { return no * ni + no * ns + ns * ni; }
 };
 
-void CheckFrequencies(const Eigen::VectorXd& frequency_hz) {
+void CheckFrequencies(const Eigen::VectorXd& frequency_hz, double lowest_hz) {
   for (Eigen::Index f = 0; f < frequency_hz.size(); ++f) {
     const double v = frequency_hz(f);
-    if (!std::isfinite(v) || v < 0) {
+    if (!std::isfinite(v) || v < lowest_hz) {
       std::ostringstream msg;
-      msg << "frequency_hz[" << f << "] = " << v << ", expected a finite frequency >= 0 Hz";
+      msg << "frequency_hz[" << f << "] = " << v << ", expected a finite frequency >= " << lowest_hz << " Hz";
+      if (lowest_hz > 0) msg << " (the lowest frequency the evaluator was set up for)";
       throw InputError(msg.str());
     }
   }
@@ -221,6 +222,12 @@ FrfEvaluator FrfEvaluator::Create(const model::SecondOrderSystem& system, const 
   check(system.D0, no, ni, "D0");
   if (n == 0) throw InputError("second-order system: no generalised coordinates");
   if (options.block_size < 1) throw InputError("FrfEvaluatorOptions.block_size must be >= 1");
+  if (!(options.lowest_frequency_hz >= 0.0) || !std::isfinite(options.lowest_frequency_hz)) {
+    std::ostringstream msg;
+    msg << "FrfEvaluatorOptions.lowest_frequency_hz = " << options.lowest_frequency_hz
+        << ", expected a finite frequency >= 0 Hz";
+    throw InputError(msg.str());
+  }
 
   FrfEvaluator ev;
   ev.system_ = system;
@@ -364,6 +371,12 @@ double FrfEvaluator::ProbeError() {
     if (k + 1 < m) omegas.push_back(std::sqrt(magnitudes[k] * magnitudes[k + 1]));
   }
   omegas.push_back(2.0 * top);
+  const double lowest = 2.0 * M_PI * options_.lowest_frequency_hz;
+  if (lowest > 0.0) {  // only where the caller will evaluate
+    omegas.erase(std::remove_if(omegas.begin(), omegas.end(), [lowest](double w) { return w < lowest; }),
+                 omegas.end());
+    omegas.insert(omegas.begin(), lowest);
+  }
   const Eigen::VectorXd omega =
       Eigen::Map<Eigen::VectorXd>(omegas.data(), static_cast<Eigen::Index>(omegas.size()));
   // Deviations are measured against the largest response to the same input over the probes (one
@@ -396,7 +409,7 @@ FrfArray FrfEvaluator::Evaluate(const Eigen::VectorXd& frequency_hz, ResponseQua
 }
 
 void FrfEvaluator::Evaluate(const Eigen::VectorXd& frequency_hz, ResponseQuantity quantity, FrfArray* out) {
-  CheckFrequencies(frequency_hz);
+  CheckFrequencies(frequency_hz, options_.lowest_frequency_hz);
   PrepareOutput(system_, frequency_hz, quantity, out);
   const Eigen::VectorXd omega = 2.0 * M_PI * frequency_hz;
   if (summary_.path == FrfMethod::kModal) {
@@ -437,7 +450,7 @@ void FrfEvaluator::EvaluateWithDerivatives(const Eigen::VectorXd& frequency_hz, 
 void FrfEvaluator::EvaluateWithDerivatives(const Eigen::VectorXd& frequency_hz, ResponseQuantity quantity,
                                            const std::vector<DynamicStiffnessDerivative>& derivatives,
                                            FrfWithDerivatives* out) {
-  CheckFrequencies(frequency_hz);
+  CheckFrequencies(frequency_hz, options_.lowest_frequency_hz);
   PrepareOutput(system_, frequency_hz, quantity, &out->frf);
   out->parameter_names.clear();
   for (const auto& d : derivatives) out->parameter_names.push_back(d.name);

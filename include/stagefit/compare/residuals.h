@@ -145,7 +145,8 @@ struct ComparisonOptions {
   /// >= 0). The comparison resolves log ratios of about 1e-4 at best (1 % noise), so 1e-8 is exact for
   /// it; the response layer's own 1e-10 sent a fifth of a diagnosis' candidate models (a stiffness
   /// probed at 1/8 of its value puts a mode near 0 Hz; modal and direct then differ by 1e-10..1e-8) to
-  /// the direct solve per frequency, ten times slower (docs/diagnose.md).
+  /// the direct solve per frequency, ten times slower (docs/diagnose.md). The probes look only at
+  /// and above the comparison's lowest frequency (FrfEvaluatorOptions::lowest_frequency_hz).
   double frf_check_tolerance = 1e-8;
 };
 

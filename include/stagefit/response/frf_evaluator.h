@@ -29,7 +29,8 @@
 //  - kAuto (default) chooses kModal unless the set-up finds it ill-conditioned: the eigen-solver fails,
 //    cond_1(V) > max_condition_number (this also catches nearly repeated, defective poles),
 //    or the modal result differs from a direct solve by more than check_tolerance at a few probe
-//    frequencies (0 Hz, between neighbouring poles, above the highest). Then kDirect is used and
+//    frequencies (0 Hz or the lowest one the caller will evaluate, between neighbouring poles above
+//    it, above the highest pole). Then kDirect is used and
 //    setup_summary() says why.
 //
 // Derivatives with respect to model parameters (model/parameters.h):
@@ -83,6 +84,11 @@ struct FrfEvaluatorOptions {
   /// neighbouring poles, twice the highest pole) differs from a direct solve by more than this,
   /// relative to the largest response to the same input there. 0 skips the probe.
   double check_tolerance = 1e-10;
+  /// The lowest frequency (Hz) the caller will evaluate; Evaluate() rejects lower ones. The probe
+  /// check then looks at and above it only: a near-zero pole (a stiffness probed at 1e-6 of its
+  /// value, say) leaves the modal sum 1e-8..1e-7 off at 0.01 Hz while it stays 1e-11 exact in the
+  /// band; 0 probes from 0 Hz up.
+  double lowest_frequency_hz = 0.0;
   /// Frequencies per block of the modal GEMM (keeps the block's buffers in the L2 cache).
   int block_size = 256;
 };
