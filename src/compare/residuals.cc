@@ -615,7 +615,7 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   };
   c.frequency_hz_.resize(static_cast<int>(kept.size()));
   for (size_t k = 0; k < kept.size(); ++k) c.frequency_hz_(static_cast<int>(k)) = frequency_hz_(kept[k]);
-  c.frf_options_.lowest_frequency_hz = c.frequency_hz_.minCoeff();
+  if (!kept.empty()) c.frf_options_.lowest_frequency_hz = c.frequency_hz_.minCoeff();
   c.measured_ = subset(measured_);
   c.weights_ = subset(weights_);
   c.snr_ = subset(snr_);
