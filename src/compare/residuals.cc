@@ -721,14 +721,22 @@ void Comparison::WeightResiduals(const Eigen::VectorXcd& e, const MeasuredSide& 
 }
 
 void Comparison::ResidualsWithModelResponse(const model::ModelSpec& spec, const Eigen::MatrixXcd& model_values,
-                                            Eigen::VectorXd* r) const {
+                                            Eigen::VectorXd* r, double delay_change_s) const {
   STAGEFIT_ASSERT(r != nullptr, "r must not be null");
   STAGEFIT_ASSERT(model_values.rows() == num_frequencies() && model_values.cols() == num_outputs() * num_inputs(),
                   "model_values must be num_frequencies() x (num_outputs() * num_inputs())");
   MeasuredSide side;
   SetMeasuredSide(spec, &side);
   Eigen::VectorXcd e;
-  CalcLogErrors(model_values, *side.values, &e);
+  if (delay_change_s == 0.0) {
+    CalcLogErrors(model_values, *side.values, &e);
+  } else {
+    Eigen::MatrixXcd delayed = model_values;
+    for (int k = 0; k < num_frequencies(); ++k) {
+      delayed.row(k) *= std::polar(1.0, -2.0 * M_PI * frequency_hz_(k) * delay_change_s);
+    }
+    CalcLogErrors(delayed, *side.values, &e);
+  }
   WeightResiduals(e, side, r);
 }
 

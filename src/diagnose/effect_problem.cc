@@ -120,6 +120,7 @@ bool EffectProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen
     std::vector<model::ModelSpec> plus(nd), minus(nd);
     std::vector<response::DynamicStiffnessDerivative> further;
     std::vector<int> further_of;
+    std::vector<double> delay_plus(nd), delay_minus(nd);
     const model::SecondOrderSystem at = comparison_->ModelSystem(spec);
     for (int d = 0; d < nd; ++d) {
       const int i = differenced[d];
@@ -130,6 +131,8 @@ bool EffectProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen
       if (!SpecAt(pp, &plus[d]) || !SpecAt(pm, &minus[d])) return false;
       model::SecondOrderSystem sp, sm;
       routes_[d] = fit::ChooseColumnRoute(*comparison_, spec, at, plus[d], minus[d], &sp, &sm);
+      delay_plus[d] = sp.delay_s - at.delay_s;
+      delay_minus[d] = sm.delay_s - at.delay_s;
       if (routes_[d] == EffectColumnRoute::kSystemDifference) {
         further.push_back(fit::SystemDifference(sp, sm, steps[d], i < ne ? effect_specs_[i].name : model_params_[i - ne].name));
         further_of.push_back(d);
@@ -142,13 +145,8 @@ bool EffectProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen
     for (size_t k = 0; k < further_of.size(); ++k) J->col(differenced[further_of[k]]) = jacobian_.col(na + static_cast<int>(k));
     for (int d = 0; d < nd; ++d) {
       if (routes_[d] == EffectColumnRoute::kSystemDifference) continue;
-      if (routes_[d] == EffectColumnRoute::kMeasuredDifference) {
-        comparison_->ResidualsWithModelResponse(plus[d], workspace_.frf.values, &r_plus_);
-        comparison_->ResidualsWithModelResponse(minus[d], workspace_.frf.values, &r_minus_);
-      } else {
-        comparison_->ResidualsAndJacobian(plus[d], {}, &r_plus_, nullptr, &difference_workspace_);
-        comparison_->ResidualsAndJacobian(minus[d], {}, &r_minus_, nullptr, &difference_workspace_);
-      }
+      fit::ResidualsAtSteps(*comparison_, routes_[d], plus[d], minus[d], delay_plus[d], delay_minus[d],
+                            workspace_.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
       J->col(differenced[d]) = (r_plus_ - r_minus_) / (2 * steps[d]);
     }
     return r->allFinite() && J->allFinite();

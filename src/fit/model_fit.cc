@@ -82,7 +82,37 @@ ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model
     return ColumnRoute::kSystemDifference;
   }
   if (SameSystem(at_system, *plus_system) && SameSystem(at_system, *minus_system)) return ColumnRoute::kMeasuredDifference;
+  auto same_but_delay = [&](const model::SecondOrderSystem& other) {
+    model::SecondOrderSystem undelayed = other;
+    undelayed.delay_s = at_system.delay_s;
+    return SameSystem(at_system, undelayed);
+  };
+  if (SameGeometryCorrections(at, plus) && SameGeometryCorrections(at, minus) && same_but_delay(*plus_system) &&
+      same_but_delay(*minus_system)) {
+    return ColumnRoute::kDelayDifference;
+  }
   return ColumnRoute::kResidualDifference;
+}
+
+void ResidualsAtSteps(const compare::Comparison& comparison, ColumnRoute route, const model::ModelSpec& plus,
+                      const model::ModelSpec& minus, double delay_plus_s, double delay_minus_s,
+                      const Eigen::MatrixXcd& values_at, response::FrfWithDerivatives* workspace,
+                      Eigen::VectorXd* r_plus, Eigen::VectorXd* r_minus) {
+  switch (route) {
+    case ColumnRoute::kMeasuredDifference:
+    case ColumnRoute::kDelayDifference:
+      comparison.ResidualsWithModelResponse(plus, values_at, r_plus, delay_plus_s);
+      comparison.ResidualsWithModelResponse(minus, values_at, r_minus, delay_minus_s);
+      return;
+    case ColumnRoute::kResidualDifference:
+      comparison.ResidualsAndJacobian(plus, {}, r_plus, nullptr, workspace);
+      comparison.ResidualsAndJacobian(minus, {}, r_minus, nullptr, workspace);
+      return;
+    case ColumnRoute::kAnalytic:
+    case ColumnRoute::kSystemDifference:
+      break;
+  }
+  STAGEFIT_ASSERT(false, "ResidualsAtSteps: the route has no residuals at the steps");
 }
 
 ModelFitProblem::ModelFitProblem(const model::ModelSpec& spec, const compare::Comparison& comparison,
@@ -127,6 +157,7 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
     std::vector<model::ModelSpec> plus(nd, spec_), minus(nd, spec_);
     std::vector<response::DynamicStiffnessDerivative> further;
     std::vector<int> further_of;
+    std::vector<double> delay_plus(nd), delay_minus(nd);
     const model::SecondOrderSystem at = comparison_->ModelSystem(spec_);
     for (int k = 0; k < nd; ++k) {
       const int i = differenced_[k];
@@ -135,6 +166,8 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
       model::SetParameter(minus[k], parameters_[i], p[i] - steps[k]);
       model::SecondOrderSystem sp, sm;
       routes_[k] = ChooseColumnRoute(*comparison_, spec_, at, plus[k], minus[k], &sp, &sm);
+      delay_plus[k] = sp.delay_s - at.delay_s;
+      delay_minus[k] = sm.delay_s - at.delay_s;
       if (routes_[k] == ColumnRoute::kSystemDifference) {
         further.push_back(SystemDifference(sp, sm, steps[k], parameters_[i].name));
         further_of.push_back(k);
@@ -149,13 +182,8 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
     }
     for (int k = 0; k < nd; ++k) {
       if (routes_[k] == ColumnRoute::kSystemDifference) continue;
-      if (routes_[k] == ColumnRoute::kMeasuredDifference) {
-        comparison_->ResidualsWithModelResponse(plus[k], workspace_.frf.values, &r_plus_);
-        comparison_->ResidualsWithModelResponse(minus[k], workspace_.frf.values, &r_minus_);
-      } else {
-        comparison_->ResidualsAndJacobian(plus[k], {}, &r_plus_, nullptr, &difference_workspace_);
-        comparison_->ResidualsAndJacobian(minus[k], {}, &r_minus_, nullptr, &difference_workspace_);
-      }
+      ResidualsAtSteps(*comparison_, routes_[k], plus[k], minus[k], delay_plus[k], delay_minus[k],
+                       workspace_.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
       jacobian->col(differenced_[k]) = (r_plus_ - r_minus_) / (2 * steps[k]);
     }
     return residuals->allFinite() && jacobian->allFinite();

@@ -101,11 +101,15 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         RouteCase{"payload@hexapod:mass=3 kg,x=0.02 m,y=-0.01 m,z=0.1 m", kCompliance, EffectColumnRoute::kSystemDifference},
         RouteCase{"extra-body@ry:mass=4 kg,k=2e7 N/m,kr=5e4 Nm/rad,z=0.1 m", kCompliance, EffectColumnRoute::kSystemDifference},
+        // In raw space too: the channels' rows stay the same while the body's centre of mass moves.
+        RouteCase{"payload@hexapod:mass=3 kg,x=0.02 m,y=-0.01 m,z=0.1 m", kRaw, EffectColumnRoute::kSystemDifference},
+        RouteCase{"extra-body@ry:mass=4 kg,k=2e7 N/m,kr=5e4 Nm/rad,z=0.1 m", kRaw, EffectColumnRoute::kSystemDifference},
         RouteCase{"servo-stiffness@ty.Dy:k=3e7 N/m,zeta=0.05", kCompliance, EffectColumnRoute::kSystemDifference},
         RouteCase{"coupled-stiffness@hexapod.Dx-Ry:k=1e5 N/m", kCompliance, EffectColumnRoute::kSystemDifference},
         RouteCase{"structural-damping@ry:eta=0.05", kCompliance, EffectColumnRoute::kSystemDifference},
         RouteCase{"joint-offset@rz:dx=0.01 m,dy=-0.02 m,dz=0.05 m", kCompliance, EffectColumnRoute::kResidualDifference},
-        RouteCase{"delay@acquisition:tau=0.2 ms", kCompliance, EffectColumnRoute::kResidualDifference},
+        RouteCase{"delay@acquisition:tau=0.2 ms", kCompliance, EffectColumnRoute::kDelayDifference},
+        RouteCase{"delay@acquisition:tau=0.2 ms", kRaw, EffectColumnRoute::kDelayDifference},
         RouteCase{"sensor-geometry@a1y:dx=0.01 m,dz=-0.01 m,rx=0.05 rad,rz=0.1 rad", kCompliance,
                   EffectColumnRoute::kMeasuredDifference},
         RouteCase{"sensor-geometry@a1y:dx=0.01 m,dz=-0.01 m,rx=0.05 rad,rz=0.1 rad", kRaw,

@@ -78,7 +78,7 @@ TEST_P(EffectColumnsTest, EveryDifferencedColumnMatchesADifferenceOfTheResiduals
   // analytic one.
   for (int k = 1; k < 5; ++k) EXPECT_EQ(routes[k], ColumnRoute::kSystemDifference) << k;  // the payload
   EXPECT_EQ(routes[5], ColumnRoute::kResidualDifference);                                // a joint's origin
-  EXPECT_EQ(routes[8], ColumnRoute::kResidualDifference);                                // a delay
+  EXPECT_EQ(routes[8], ColumnRoute::kDelayDifference);                                   // a delay
 }
 
 INSTANTIATE_TEST_SUITE_P(Spaces, EffectColumnsTest,

@@ -263,8 +263,10 @@ class Comparison {
   /// response::FrfArray::values on frequency_hz() (the workspace's frf.values after a call above). For a
   /// spec whose ModelSystem() equals that of the spec the values came from, and whose geometry
   /// corrections differ (compliance space: only the measured side moves); ||r|| = Error(spec) then.
+  /// `delay_change_s` delays the given responses by that much more (e^{-j omega delay_change_s} at
+  /// every point): for a spec whose system differs from theirs only in its delay.
   void ResidualsWithModelResponse(const model::ModelSpec& spec, const Eigen::MatrixXcd& model_values,
-                                  Eigen::VectorXd* r) const;
+                                  Eigen::VectorXd* r, double delay_change_s = 0.0) const;
 
   /// The second-order system the model `spec` is compared through: its inputs and outputs are the
   /// compared channels (in raw space at the geometry `spec` corrects).

@@ -47,10 +47,13 @@ struct BoundRule {
 ///  - kMeasuredDifference: it changes only the measured side (a channel's geometry in compliance
 ///    space: the data are re-projected, the model is not touched): the residuals at p +- h with the
 ///    model's responses at p;
+///  - kDelayDifference: it changes only the system's delay (a delay in the acquisition chain): the
+///    residuals at p +- h with the model's responses at p delayed by the change, e^{-j omega dtau}
+///    (the responses are s^p e^{-s tau} H0, response/frf_evaluator.h), with no evaluation of its own;
 ///  - kResidualDifference: anything else (a joint's origin moves the generalised coordinates the
-///    channels are read in; a delay; a channel's geometry in raw space): the central difference of the
+///    channels are read in; a channel's geometry in raw space): the central difference of the
 ///    residuals.
-enum class ColumnRoute { kAnalytic, kSystemDifference, kMeasuredDifference, kResidualDifference };
+enum class ColumnRoute { kAnalytic, kSystemDifference, kMeasuredDifference, kDelayDifference, kResidualDifference };
 
 /// Same generalised coordinates, channels and delay: the systems differ at most in M, C, K, K_loss.
 bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b);
@@ -65,6 +68,14 @@ ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model
                               const model::SecondOrderSystem& at_system, const model::ModelSpec& plus,
                               const model::ModelSpec& minus, model::SecondOrderSystem* plus_system,
                               model::SecondOrderSystem* minus_system);
+/// The residuals at p + h and p - h of a column on a differencing route: from the model's responses
+/// at p (`values_at`, the workspace's frf.values after the evaluation at p) on kMeasuredDifference and
+/// kDelayDifference (delayed by the systems' delay changes `delay_plus_s`, `delay_minus_s`), evaluated
+/// afresh in `workspace` on kResidualDifference.
+void ResidualsAtSteps(const compare::Comparison& comparison, ColumnRoute route, const model::ModelSpec& plus,
+                      const model::ModelSpec& minus, double delay_plus_s, double delay_minus_s,
+                      const Eigen::MatrixXcd& values_at, response::FrfWithDerivatives* workspace,
+                      Eigen::VectorXd* r_plus, Eigen::VectorXd* r_minus);
 
 /// The step of a differenced column at `value`: 1e-5 |value| for a log-scale parameter, a millionth of
 /// the catalogue range of an effect parameter without a log scale.

@@ -86,8 +86,8 @@ struct FrfEvaluatorOptions {
   double check_tolerance = 1e-10;
   /// The lowest frequency (Hz) the caller will evaluate; Evaluate() rejects lower ones. The probe
   /// check then looks at and above it only: a near-zero pole (a stiffness probed at 1e-6 of its
-  /// value, say) leaves the modal sum 1e-8..1e-7 off at 0.01 Hz while it stays 1e-11 exact in the
-  /// band; 0 probes from 0 Hz up.
+  /// value, say) leaves the modal sum's rounding at 1e-8 near 0 Hz, falling as 1/f to 1e-11 at 5 Hz
+  /// (docs/response.md); 0 probes from 0 Hz up.
   double lowest_frequency_hz = 0.0;
   /// Frequencies per block of the modal GEMM (keeps the block's buffers in the L2 cache).
   int block_size = 256;
