@@ -6,10 +6,13 @@
 # more than 2 GB (-rss_limit_mb), leaks or throws anything but InputError. Crashing inputs go to
 # build-fuzz/artifacts/<target>/, logs to build-fuzz/logs/.
 #
-# Usage: bash scripts/fuzz.sh [--seconds N] [--targets a,b] [--jobs N] [--keep-corpus]
+# Usage: bash scripts/fuzz.sh [--seconds N | --runs N [--seed S]] [--targets a,b] [--jobs N] [--keep-corpus]
 #        bash scripts/fuzz.sh --replay         every input of tests/fuzz/regressions/ and corpus/ once
 #        bash scripts/fuzz.sh --make-corpus    regenerate the seeds of tests/fuzz/corpus/
 #   --seconds N      time per target (default 15: about 1.5 minutes for all of them)
+#   --runs N         instead of a time, N executions per target from a fixed seed (--seed, default
+#                    1): the same inputs on every machine, as the test command runs it, so that a
+#                    failure there is the change's and can be replayed; exploring is for --seconds
 #   --targets a,b    only these targets (names as in tests/fuzz/, e.g. uff_measurement_fuzz)
 #   --jobs N         parallel fuzzing processes per target (libFuzzer -fork=N; default 1)
 #   --keep-corpus    keep and grow build-fuzz/corpus/<target>/ across runs instead of starting
@@ -21,18 +24,22 @@ cd "$(dirname "$0")/.."
 
 mode=fuzz
 seconds=15
+runs=0
+seed=1
 jobs=1
 keep_corpus=0
 only=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds="$2"; shift 2 ;;
+    --runs) runs="$2"; shift 2 ;;
+    --seed) seed="$2"; shift 2 ;;
     --targets) only="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
     --keep-corpus) keep_corpus=1; shift ;;
     --replay) mode=replay; shift ;;
     --make-corpus) mode=make-corpus; shift ;;
-    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
     *) echo "fuzz: unknown argument '$1' (see --help)" >&2; exit 1 ;;
   esac
 done
@@ -109,15 +116,22 @@ for t in "${targets[@]}"; do
   for d in tests/fuzz/corpus/$t tests/fuzz/regressions/$t; do
     [ -d "$d" ] && cp -n "$d"/* "$work/" 2>/dev/null || true
   done
-  options=(-max_total_time="$seconds" -max_len="${max_len[$t]}" -timeout=10 -rss_limit_mb=2048
+  options=(-max_len="${max_len[$t]}" -timeout=10 -rss_limit_mb=2048
            -print_final_stats=1 -close_fd_mask=3 -artifact_prefix="$artifacts")
+  if [ "$runs" -gt 0 ]; then
+    options+=(-runs="$runs" -seed="$seed")
+  else
+    options+=(-max_total_time="$seconds")
+  fi
   [ "$jobs" -gt 1 ] && options+=(-fork="$jobs" -ignore_crashes=0)
   result=ok
+  started=$(date +%s)
   "$bin/$t" "${options[@]}" "$work" >"$log" 2>&1 || result=FAILED
+  elapsed=$(( $(date +%s) - started ))
   executions=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -n 1 | grep -o '[0-9]*$' || true)
   [ -n "$executions" ] || executions=$(grep -o '#[0-9]*' "$log" | tail -n 1 | tr -d '#' || true)
-  rate=$(( ${executions:-0} / (seconds > 0 ? seconds : 1) ))
-  printf '%-22s %8s %12s %8s  %s\n' "$t" "$seconds" "${executions:-?}" "$rate" "$result"
+  rate=$(( ${executions:-0} / (elapsed > 0 ? elapsed : 1) ))
+  printf '%-22s %8s %12s %8s  %s\n' "$t" "$elapsed" "${executions:-?}" "$rate" "$result"
   if [ "$result" != ok ]; then
     status=1
     echo "---- $t: $log (crashing input in $artifacts)" >&2

@@ -12,6 +12,7 @@
 #include <system_error>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/utf8.h"
 
 namespace stagefit::measurement::internal {
 namespace fs = std::filesystem;
@@ -19,9 +20,26 @@ namespace fs = std::filesystem;
 namespace {
 
 // Data types and array classes of the v5 format (MATLAB's "MAT-File Format", chapter 1).
-constexpr std::uint32_t kMiInt32 = 5, kMiMatrix = 14, kMiCompressed = 15;
+constexpr std::uint32_t kMiInt8 = 1, kMiInt32 = 5, kMiUint32 = 6, kMiMatrix = 14, kMiCompressed = 15;
 constexpr std::uint32_t kCellClass = 1, kStructClass = 2, kObjectClass = 3, kCharClass = 4,
-                        kSparseClass = 5, kFunctionClass = 16, kOpaqueClass = 17;
+                        kSparseClass = 5, kDoubleClass = 6, kUint64Class = 15, kFunctionClass = 16,
+                        kOpaqueClass = 17;
+
+// The classes a reader takes: cells (of strings), char and numeric arrays.
+bool ReadableClass(std::uint32_t c) {
+  return c == kCellClass || c == kCharClass || (c >= kDoubleClass && c <= kUint64Class);
+}
+
+std::string ClassText(std::uint32_t c) {
+  switch (c) {
+    case kStructClass: return " (a struct)";
+    case kObjectClass: return " (an object)";
+    case kSparseClass: return " (a sparse matrix)";
+    case kFunctionClass: return " (a function handle)";
+    case kOpaqueClass: return " (an opaque object)";
+    default: return " (unknown)";
+  }
+}
 
 // Bytes read in order from the file or from a compressed variable's inflated stream.
 class Source {
@@ -80,8 +98,11 @@ class StructureChecker {
                          std::uint32_t{b[2]} << 8 | std::uint32_t{b[3]};
   }
 
-  // A matrix element's content of `bytes` bytes: array flags, dimensions, name, then the data,
-  // cells or struct fields.
+  // A matrix element's content of `bytes` bytes: array flags, dimensions, name, then the data or
+  // cells. The layout is checked as matio reads it (mat5.c, Mat_VarReadNextInfo5 and ReadNextCell):
+  // matio reads the flags and the dimensions' tag as 24 bytes, skips a name only when it is of type
+  // miINT8, and reads a char array's data by the size in the tag it finds where the name ends; an
+  // element it would read from somewhere other than where this check looked is rejected.
   void Matrix(Source& src, std::uint64_t bytes, int depth) {
     if (depth > kMaxMatNesting) {
       Fail("cells or structs nested more than " + std::to_string(kMaxMatNesting) + " levels deep");
@@ -89,11 +110,16 @@ class StructureChecker {
     if (bytes == 0) return;  // an empty element: MATLAB writes them for empty cells
     std::uint64_t left = bytes;
     unsigned char flags[8] = {};
-    Element(src, &left, "array flags", flags, sizeof flags);
+    const std::uint64_t flags_bytes =
+        Element(src, &left, "array flags", flags, sizeof flags, kMiUint32, nullptr, Packed::kNo);
+    if (flags_bytes != sizeof flags) {
+      Fail("array flags of " + std::to_string(flags_bytes) + " bytes, expected 8");
+    }
     const std::uint32_t array_class = U32(flags) & 0xFF;
 
     unsigned char dims[4 * kMaxMatRank] = {};
-    const std::uint64_t dims_bytes = Element(src, &left, "dimensions", dims, sizeof dims, kMiInt32);
+    const std::uint64_t dims_bytes =
+        Element(src, &left, "dimensions", dims, sizeof dims, kMiInt32, nullptr, Packed::kNo);
     if (dims_bytes % 4 != 0 || dims_bytes > sizeof dims) {
       Fail("dimensions of " + std::to_string(dims_bytes) + " bytes, expected at most " +
            std::to_string(kMaxMatRank) + " dimensions of 4 bytes");
@@ -109,40 +135,34 @@ class StructureChecker {
       }
       numel *= d;
     }
-    char name[64] = {};
-    Element(src, &left, "name", reinterpret_cast<unsigned char*>(name), sizeof name - 1);
-    // matio 1.5 leaks the parts of a function handle that it reads (found by fuzzing); no reader
-    // takes one, nor a class matio does not know.
-    if (array_class == kFunctionClass || array_class < kCellClass || array_class > kOpaqueClass) {
-      Fail(std::string(*name ? "'" + std::string(name) + "': " : "") + "array class " +
-               std::to_string(array_class) +
-               (array_class == kFunctionClass ? " (a function handle)" : " (unknown)") +
+    char name_bytes[64] = {};
+    Element(src, &left, "name", reinterpret_cast<unsigned char*>(name_bytes), sizeof name_bytes - 1);
+    const std::uint32_t name_type = last_type_;  // checked below, after the sizes
+    const std::string name = *name_bytes ? "'" + EscapeNonUtf8(name_bytes) + "': " : "";
+    // No reader takes a struct, object, sparse matrix, function handle or opaque object, and matio
+    // allocates by sizes read from their contents (a sparse matrix's index and data tags, found by
+    // fuzzing; it also leaks the parts of a function handle it reads): they are rejected before
+    // matio reads them, with classes matio does not know.
+    if (!ReadableClass(array_class)) {
+      const bool known = array_class >= kCellClass && array_class <= kOpaqueClass;
+      Fail(name + "array class " + std::to_string(array_class) + ClassText(array_class) +
                ", expected a numeric, char or cell array",
-           array_class != kFunctionClass);
+           !known);
     }
-    // Every element takes at least a byte of (inflated) data, except in a sparse matrix, whose
-    // dimensions are nominal. matio allocates a char array, and any array inside a cell, by its
-    // dimensions when it reads it; the readers check the sizes of top-level numeric arrays
-    // themselves, with messages of their own.
+    // Every element takes at least a byte of (inflated) data. matio allocates a char array, and
+    // any array inside a cell, by its dimensions when it reads it; the readers check the sizes of
+    // top-level numeric arrays themselves, with messages of their own.
     const bool unchecked = array_class == kCharClass || depth > 0;
-    if (unchecked && array_class != kSparseClass && numel > static_cast<double>(max_bytes_)) {
+    if (unchecked && numel > static_cast<double>(max_bytes_)) {
       std::ostringstream m;
-      m << (*name ? "'" + std::string(name) + "': " : "") << "size "
-        << DimsText(dims, dims_bytes / 4) << " (" << numel << " elements), more than the file can hold";
+      m << name << "size " << DimsText(dims, dims_bytes / 4) << " (" << numel
+        << " elements), more than the file can hold";
       Fail(m.str());
     }
-    double children = 0.0;  // matrix elements that follow: cells, or fields of every struct element
-    if (array_class == kCellClass) {
-      children = numel;
-    } else if (array_class == kStructClass || array_class == kObjectClass) {
-      if (array_class == kObjectClass) Element(src, &left, "class name", nullptr, 0);
-      unsigned char length[4] = {};
-      Element(src, &left, "field name length", length, sizeof length, kMiInt32);
-      const std::uint32_t name_length = U32(length);
-      const std::uint64_t names = Element(src, &left, "field names", nullptr, 0);
-      if (name_length == 0 && names > 0) Fail("field names of length 0");
-      children = name_length == 0 ? 0.0 : numel * static_cast<double>(names / name_length);
+    if (name_type != kMiInt8) {
+      Fail("name: data type " + std::to_string(name_type) + ", expected " + std::to_string(kMiInt8));
     }
+    const double children = array_class == kCellClass ? numel : 0.0;  // matrix elements that follow
     // Each is a matrix element of at least a tag (8 bytes).
     if (children * 8.0 > static_cast<double>(left)) {
       Fail("declares " + std::to_string(children) + " cells or fields but only " +
@@ -164,18 +184,24 @@ class StructureChecker {
       Matrix(src, size, depth + 1);
       left -= size;
     }
-    // Data elements (real and imaginary parts, sparse indices): each must be there in full. The
-    // data may end early between two elements: matio declares compressed char arrays 8 bytes
-    // longer than they are.
+    // Data elements (real and imaginary parts): each must be there in full, and a non-empty char
+    // or numeric array's first one must lie inside the array (matio reads its tag from where the
+    // name ends, whatever follows). The data may end early between two elements: matio declares
+    // compressed char arrays 8 bytes longer than they are.
+    if (array_class != kCellClass && numel > 0.0) Element(src, &left, "data", nullptr, 0);
     bool end = false;
     while (left >= 8 && !end) Element(src, &left, "data", nullptr, 0, 0, &end);
   }
+
+  // Whether an element may be a small one (type, size and up to 4 data bytes in its 8-byte tag).
+  enum class Packed { kYes, kNo };
 
   // One data element (tag and data, 8-byte aligned) of a matrix with `*left` bytes still to come.
   // Copies at most `keep` data bytes to `out`; checks the data type when `type` is not 0; returns
   // the number of data bytes. With `end`, the data may end before the tag: *end is set, 0 returned.
   std::uint64_t Element(Source& src, std::uint64_t* left, const char* what, unsigned char* out,
-                        std::size_t keep, std::uint32_t type = 0, bool* end = nullptr) {
+                        std::size_t keep, std::uint32_t type = 0, bool* end = nullptr,
+                        Packed packed = Packed::kYes) {
     unsigned char tag[8];
     if (*left < 8 || !src.Read(tag, 8)) {
       if (end == nullptr) Fail(std::string(what) + " missing");
@@ -184,8 +210,10 @@ class StructureChecker {
     }
     *left -= 8;
     const std::uint32_t word = U32(tag);
+    last_type_ = (word >> 16) != 0 ? word & 0xFFFF : word;
     if ((word >> 16) != 0) {  // small data element: type and size in 4 bytes, data in the next 4
       const std::uint32_t bytes = word >> 16;
+      if (packed == Packed::kNo) Fail(std::string(what) + ": a small element, expected a full one");
       if (bytes > 4) Fail(std::string(what) + ": small element of " + std::to_string(bytes) + " bytes");
       if (type != 0 && (word & 0xFFFF) != type) Fail(std::string(what) + ": unexpected data type");
       if (keep > 0) std::copy(tag + 4, tag + 4 + std::min<std::size_t>(bytes, keep), out);
@@ -214,6 +242,7 @@ class StructureChecker {
   bool little_;
   std::uint64_t max_bytes_;
   int variable_ = 0;
+  std::uint32_t last_type_ = 0;  // data type of the last element Element() read
 };
 
 // The zlib stream of a compressed variable, inflated on demand.

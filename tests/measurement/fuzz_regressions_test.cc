@@ -82,6 +82,70 @@ TEST(MatFileFuzzRegression, FunctionHandleIsRejectedBeforeMatioReadsIt) {
       "variable 4: 'o': array class 16 (a function handle)");
 }
 
+// A cell's char array whose name element is of type miDOUBLE (9): matio skips only miINT8 names,
+// so it read the name's bytes as the data tag and allocated 0xffffffffd6000006 bytes (CI's fuzz
+// run; this file reproduces it from a seed).
+TEST(MatFileFuzzRegression, NameOfAnotherTypeThanInt8IsRejected) {
+  ExpectInputError(
+      [] { ReadMatMeasurement(Regressions("mat_measurement_fuzz") / "v5_cell_name_not_int8.mat"); },
+      "name: data type 9, expected 1");
+}
+
+// A sparse matrix in a mutated measurement: matio allocated 2 GiB reading it, before the reader
+// refused the class.
+TEST(MatFileFuzzRegression, SparseMatrixIsRejectedBeforeMatioReadsIt) {
+  ExpectInputError(
+      [] {
+        ReadMatMeasurement(Regressions("mat_measurement_fuzz") / "v5_sparse_unknown_data_type.mat");
+      },
+      "variable 12: 'impact_directi");
+  ExpectInputError(
+      [] {
+        ReadMatMeasurement(Regressions("mat_measurement_fuzz") / "v5_sparse_unknown_data_type.mat");
+      },
+      "array class 5 (a sparse matrix), expected a numeric, char or cell array");
+}
+
+// Edits of a valid v5 file at the places where matio and the structure check could read the
+// layout differently. The first variable, 'freq_hz', starts at byte 128: its tag (8 bytes), the
+// array flags' tag and flags (8 + 8), the dimensions' tag and two dimensions (8 + 8), the name's
+// tag and 'freq_hz' padded to 8 bytes (8 + 8), then the data.
+TEST(MatFileFuzzRegression, LayoutMatioWouldReadElsewhereIsRejected) {
+  const fs::path dir = testing::MakeTempDir("fuzz_regression_layout");
+  const fs::path valid = dir / "valid.mat";
+  WriteMatMeasurement(valid, testing::MakeMeasurement(3, false), MatVersion::kV5);
+  ASSERT_NO_THROW(ReadMatMeasurement(valid));
+  const std::string bytes = ReadBytes(valid);
+  auto word = [&](std::size_t at) {
+    std::uint32_t w;
+    std::memcpy(&w, bytes.data() + at, 4);
+    return w;
+  };
+  ASSERT_EQ(word(128), 14u);       // miMATRIX
+  ASSERT_EQ(word(136), 6u);        // flags: miUINT32,
+  ASSERT_EQ(word(140), 8u);        //        8 bytes
+  ASSERT_EQ(word(144) & 0xFF, 6u);  // class double
+  ASSERT_EQ(word(152), 5u);        // dimensions: miINT32
+  ASSERT_EQ(word(168), 1u);        // name: miINT8,
+  ASSERT_EQ(word(172), 7u);        //       'freq_hz'
+  auto expect_edit = [&](std::size_t at, std::uint32_t value, const std::string& message) {
+    SCOPED_TRACE(message);
+    std::string edited = bytes;
+    std::memcpy(edited.data() + at, &value, 4);
+    const fs::path path = dir / "edited.mat";
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << edited;
+    ExpectInputError([&] { ReadMatMeasurement(path); }, message);
+  };
+  expect_edit(168, 2, "variable 1: name: data type 2, expected 1");
+  expect_edit(136, 6u | 4u << 16, "variable 1: array flags: a small element, expected a full one");
+  expect_edit(152, 5u | 4u << 16, "variable 1: dimensions: a small element, expected a full one");
+  // The variable ends after its name: matio would read its data tag from the next variable.
+  expect_edit(132, 48, "variable 1: data missing");
+  expect_edit(144, 5, "variable 1: 'freq_hz': array class 5 (a sparse matrix)");
+  expect_edit(144, 2, "variable 1: 'freq_hz': array class 2 (a struct)");
+  fs::remove_all(dir);
+}
+
 // The readable equivalent of the first case: a valid file with one size field made too large.
 TEST(MatFileFuzzRegression, EditedDimensionsTagIsRejected) {
   const fs::path dir = testing::MakeTempDir("fuzz_regression");
@@ -124,7 +188,7 @@ TEST(MeasurementFuzzRegression, EveryStoredInputIsAnInputError) {
       ++count;
     }
   }
-  EXPECT_GE(count, 6);
+  EXPECT_GE(count, 8);
 }
 
 }  // namespace
