@@ -697,16 +697,44 @@ double Comparison::Error(const model::ModelSpec& spec) const {
   return r.norm();
 }
 
+namespace {
+
+bool SameMatrix(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
+}
+
+bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
+  return SameMatrix(a.M, b.M) && SameMatrix(a.C, b.C) && SameMatrix(a.K, b.K) && SameMatrix(a.K_loss, b.K_loss) &&
+         SameMatrix(a.B0, b.B0) && SameMatrix(a.B2, b.B2) && SameMatrix(a.Cq, b.Cq) && SameMatrix(a.D0, b.D0) &&
+         a.delay_s == b.delay_s && a.input_names == b.input_names && a.output_names == b.output_names &&
+         a.dof_names == b.dof_names;
+}
+
+}  // namespace
+
+response::FrfEvaluator& ModelWorkspace::SetUp(const model::SecondOrderSystem& system,
+                                              const response::FrfEvaluatorOptions& options) {
+  if (setup_ && options_ == options && SameSystem(setup_->system(), system)) {
+    ++num_reused;
+    return *setup_;
+  }
+  setup_.reset();  // a set-up that throws leaves none behind
+  setup_ = response::FrfEvaluator::Create(system, options);
+  options_ = options;
+  ++num_setups;
+  return *setup_;
+}
+
 void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
                                       Eigen::MatrixXd* J) const {
-  response::FrfWithDerivatives workspace;
+  ModelWorkspace workspace;
   ResidualsAndJacobian(spec, params, r, J, &workspace);
 }
 
 void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       const std::vector<model::ParameterInfo>& params, Eigen::VectorXd* r,
-                                      Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const {
+                                      Eigen::MatrixXd* J, ModelWorkspace* workspace) const {
   ResidualsAndJacobian(spec, params, {}, r, J, workspace);
 }
 
@@ -748,16 +776,16 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
                                       const std::vector<model::ParameterInfo>& params,
                                       const std::vector<response::DynamicStiffnessDerivative>& further,
                                       Eigen::VectorXd* r, Eigen::MatrixXd* J,
-                                      response::FrfWithDerivatives* workspace) const {
+                                      ModelWorkspace* workspace) const {
   STAGEFIT_ASSERT(r != nullptr && workspace != nullptr, "r and workspace must not be null");
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
-  auto evaluator = response::FrfEvaluator::Create(BuildModelSystem(assembled), frf_options_);
+  response::FrfEvaluator& evaluator = workspace->SetUp(BuildModelSystem(assembled), frf_options_);
   const auto quantity = ToResponseQuantity(quantity_);
   const int np = num_points();
   const int num_columns = static_cast<int>(params.size() + further.size());
   const bool want_jacobian = J != nullptr && num_columns > 0;
 
-  response::FrfWithDerivatives& frf = *workspace;
+  response::FrfWithDerivatives& frf = workspace->frf;
   if (want_jacobian && further.empty()) {
     evaluator.EvaluateWithDerivatives(frequency_hz_, quantity, params, assembled, &frf);
   } else if (want_jacobian) {

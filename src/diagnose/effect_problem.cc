@@ -146,7 +146,7 @@ bool EffectProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen
     for (int d = 0; d < nd; ++d) {
       if (routes_[d] == EffectColumnRoute::kSystemDifference) continue;
       fit::ResidualsAtSteps(*comparison_, routes_[d], plus[d], minus[d], delay_plus[d], delay_minus[d],
-                            workspace_.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
+                            workspace_.frf.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
       J->col(differenced[d]) = (r_plus_ - r_minus_) / (2 * steps[d]);
     }
     return r->allFinite() && J->allFinite();

@@ -96,7 +96,7 @@ ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model
 
 void ResidualsAtSteps(const compare::Comparison& comparison, ColumnRoute route, const model::ModelSpec& plus,
                       const model::ModelSpec& minus, double delay_plus_s, double delay_minus_s,
-                      const Eigen::MatrixXcd& values_at, response::FrfWithDerivatives* workspace,
+                      const Eigen::MatrixXcd& values_at, compare::ModelWorkspace* workspace,
                       Eigen::VectorXd* r_plus, Eigen::VectorXd* r_minus) {
   switch (route) {
     case ColumnRoute::kMeasuredDifference:
@@ -183,7 +183,7 @@ bool ModelFitProblem::Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residu
     for (int k = 0; k < nd; ++k) {
       if (routes_[k] == ColumnRoute::kSystemDifference) continue;
       ResidualsAtSteps(*comparison_, routes_[k], plus[k], minus[k], delay_plus[k], delay_minus[k],
-                       workspace_.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
+                       workspace_.frf.frf.values, &difference_workspace_, &r_plus_, &r_minus_);
       jacobian->col(differenced_[k]) = (r_plus_ - r_minus_) / (2 * steps[k]);
     }
     return residuals->allFinite() && jacobian->allFinite();

@@ -14,6 +14,12 @@
 #include "stagefit/model/modes.h"
 
 namespace stagefit::response {
+
+bool operator==(const FrfEvaluatorOptions& a, const FrfEvaluatorOptions& b) {
+  return a.method == b.method && a.max_condition_number == b.max_condition_number &&
+         a.check_tolerance == b.check_tolerance && a.lowest_frequency_hz == b.lowest_frequency_hz &&
+         a.block_size == b.block_size;
+}
 namespace {
 
 using Complex = std::complex<double>;

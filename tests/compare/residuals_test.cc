@@ -200,7 +200,7 @@ TEST_F(ResidualsTest, FurtherColumnsFromSystemDerivativesEqualTheParametersColum
   }
   Eigen::VectorXd r, r_further;
   Eigen::MatrixXd J, J_further;
-  response::FrfWithDerivatives workspace;
+  ModelWorkspace workspace;
   comparison.ResidualsAndJacobian(perturbed, params, &r, &J);
   comparison.ResidualsAndJacobian(perturbed, {params[0]}, further, &r_further, &J_further, &workspace);
   ASSERT_EQ(J_further.cols(), 1 + J.cols());
@@ -222,12 +222,51 @@ TEST_F(ResidualsTest, ResidualsWithTheModelsResponsesGivenAreTheResiduals) {
                                                    corrected, comparison.CorrectableChannels()));
   ASSERT_EQ(comparison.ModelSystem(corrected).Cq, comparison.ModelSystem(spec_).Cq);
   Eigen::VectorXd r, r_given, r_plain;
-  response::FrfWithDerivatives workspace;
+  ModelWorkspace workspace;
   comparison.ResidualsAndJacobian(spec_, {}, &r_plain, nullptr, &workspace);
-  comparison.ResidualsWithModelResponse(corrected, workspace.frf.values, &r_given);
+  comparison.ResidualsWithModelResponse(corrected, workspace.frf.frf.values, &r_given);
   comparison.Residuals(corrected, &r);
   EXPECT_LT((r_given - r).norm(), 1e-12 * r.norm());
   EXPECT_GT((r - r_plain).norm(), 1e-3 * r.norm());  // the correction does move the residuals
+}
+
+// A workspace reuses the set-up of the last model only for the same system with the same options, and
+// what it gives then is what a fresh set-up gives, to the bit.
+TEST_F(ResidualsTest, AWorkspaceReusesTheSetUpOfTheSameModelOnly) {
+  const Comparison comparison = Comparison::Create(spec_, data_);
+  model::ModelSpec spec = spec_;
+  const auto params = model::MatchParameters(spec, {"hexapod.k.D?", "rz.k.Rx"});
+  ModelWorkspace workspace;
+  Eigen::VectorXd r1, r2, r_fresh;
+  Eigen::MatrixXd J1, J2, J_fresh;
+  comparison.ResidualsAndJacobian(spec, {}, &r1, nullptr, &workspace);      // residuals at a point,
+  comparison.ResidualsAndJacobian(spec, params, &r2, &J2, &workspace);     // then the Jacobian there
+  EXPECT_EQ(workspace.num_setups, 1);
+  EXPECT_EQ(workspace.num_reused, 1);
+  comparison.ResidualsAndJacobian(spec, params, &r_fresh, &J_fresh);       // a fresh workspace
+  EXPECT_EQ(r1, r_fresh);
+  EXPECT_EQ(r2, r_fresh);
+  EXPECT_EQ(J2, J_fresh);
+
+  // Another stiffness: a new set-up, and the residuals of the new model.
+  model::SetParameter(spec, params[0], 1.01 * model::GetParameter(spec, params[0]));
+  comparison.ResidualsAndJacobian(spec, params, &r1, &J1, &workspace);
+  EXPECT_EQ(workspace.num_setups, 2);
+  comparison.ResidualsAndJacobian(spec, params, &r_fresh, &J_fresh);
+  EXPECT_EQ(r1, r_fresh);
+  EXPECT_EQ(J1, J_fresh);
+  EXPECT_NE(r1, r2);
+
+  // The same model on a comparison of fewer frequencies: other options (its lowest frequency), so a
+  // new set-up.
+  std::vector<int> upper;
+  for (int k = comparison.num_frequencies() / 2; k < comparison.num_frequencies(); ++k) upper.push_back(k);
+  const Comparison part = comparison.OnFrequencies(upper);
+  Eigen::VectorXd r_part, r_part_fresh;
+  part.ResidualsAndJacobian(spec, {}, &r_part, nullptr, &workspace);
+  EXPECT_EQ(workspace.num_setups, 3);
+  part.Residuals(spec, &r_part_fresh);
+  EXPECT_EQ(r_part, r_part_fresh);
 }
 
 TEST_F(ResidualsTest, CoherenceWeightsReduceTheInfluenceOfALowCoherencePoint) {

@@ -92,6 +92,23 @@
 
 namespace stagefit::compare {
 
+/// What one caller (one thread) reuses from one evaluation of a Comparison to the next: the storage of
+/// the model's FRFs and derivatives (a fresh Nf x Nout x Nin x P derivative array costs more in page
+/// faults than computing it), and the set-up of the last model evaluated (its eigendecomposition),
+/// reused when the next model's system and the evaluator's options are the same to the bit: a fit's
+/// accepted step evaluates the candidate's residuals, then the Jacobian at the same point.
+struct ModelWorkspace {
+  response::FrfWithDerivatives frf;
+  /// The set-up of `system` with `options` (model::SecondOrderSystem and the options are compared
+  /// whole, names included).
+  response::FrfEvaluator& SetUp(const model::SecondOrderSystem& system, const response::FrfEvaluatorOptions& options);
+  int num_setups = 0, num_reused = 0;  ///< set-ups made and reused (for tests and profiling)
+
+ private:
+  std::optional<response::FrfEvaluator> setup_;
+  response::FrfEvaluatorOptions options_;
+};
+
 /// Where model and measurement are compared.
 enum class ComparisonSpace {
   kCompliance,  ///< the 6x6 compliance at {X} (measurement projected with J_a and J_F)
@@ -247,20 +264,20 @@ class Comparison {
   void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
                             Eigen::VectorXd* r, Eigen::MatrixXd* J) const;
   /// The same with the model's FRFs and derivatives held in `workspace` (one per thread), whose storage
-  /// is reused from call to call: a fit loop then allocates nothing per evaluation (a fresh
-  /// Nf x Nout x Nin x P derivative array costs more in page faults than computing it).
+  /// and last set-up are reused from call to call (ModelWorkspace): a fit loop then allocates nothing
+  /// per evaluation, and decomposes the model once per point.
   void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
-                            Eigen::VectorXd* r, Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const;
+                            Eigen::VectorXd* r, Eigen::MatrixXd* J, ModelWorkspace* workspace) const;
   /// The same with further columns after those of `params`, one per entry of `further`: derivatives of
   /// the model's dynamic stiffness (in the generalised coordinates of ModelSystem(spec)) with respect to
   /// parameters that change only M, C, K and K_loss, such as an effect's (diagnose differences the
   /// systems of two specs). Throws InputError when an entry is outside the system.
   void ResidualsAndJacobian(const model::ModelSpec& spec, const std::vector<model::ParameterInfo>& params,
                             const std::vector<response::DynamicStiffnessDerivative>& further, Eigen::VectorXd* r,
-                            Eigen::MatrixXd* J, response::FrfWithDerivatives* workspace) const;
+                            Eigen::MatrixXd* J, ModelWorkspace* workspace) const;
 
   /// r of `spec` with the model's responses given: `model_values` in the layout of
-  /// response::FrfArray::values on frequency_hz() (the workspace's frf.values after a call above). For a
+  /// response::FrfArray::values on frequency_hz() (the workspace's frf.frf.values after a call above). For a
   /// spec whose ModelSystem() equals that of the spec the values came from, and whose geometry
   /// corrections differ (compliance space: only the measured side moves); ||r|| = Error(spec) then.
   /// `delay_change_s` delays the given responses by that much more (e^{-j omega delay_change_s} at

@@ -82,9 +82,9 @@ class EffectProblem final : public fit::LeastSquaresProblem {
   std::vector<model::ParameterInfo> model_params_;
   // Reused from evaluation to evaluation (one problem per thread): fresh arrays of this size cost more
   // in page faults than the response itself.
-  mutable response::FrfWithDerivatives workspace_;
+  mutable compare::ModelWorkspace workspace_;
   // The responses at p +- h (workspace_ keeps p's for the measured-difference route).
-  mutable response::FrfWithDerivatives difference_workspace_;
+  mutable compare::ModelWorkspace difference_workspace_;
   mutable Eigen::MatrixXd jacobian_;
   mutable Eigen::VectorXd r_plus_, r_minus_;
   mutable std::vector<EffectColumnRoute> routes_;

@@ -74,7 +74,7 @@ ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model
 /// afresh in `workspace` on kResidualDifference.
 void ResidualsAtSteps(const compare::Comparison& comparison, ColumnRoute route, const model::ModelSpec& plus,
                       const model::ModelSpec& minus, double delay_plus_s, double delay_minus_s,
-                      const Eigen::MatrixXcd& values_at, response::FrfWithDerivatives* workspace,
+                      const Eigen::MatrixXcd& values_at, compare::ModelWorkspace* workspace,
                       Eigen::VectorXd* r_plus, Eigen::VectorXd* r_minus);
 
 /// The step of a differenced column at `value`: 1e-5 |value| for a log-scale parameter, a millionth of
@@ -107,8 +107,8 @@ class ModelFitProblem final : public LeastSquaresProblem {
 
  private:
   mutable model::ModelSpec spec_;
-  mutable response::FrfWithDerivatives workspace_;  // reused by every evaluation
-  mutable response::FrfWithDerivatives difference_workspace_;
+  mutable compare::ModelWorkspace workspace_;  // reused by every evaluation
+  mutable compare::ModelWorkspace difference_workspace_;
   const compare::Comparison* comparison_;
   std::vector<model::ParameterInfo> parameters_;
   std::vector<int> analytic_, differenced_;   // indices into parameters_

@@ -92,6 +92,8 @@ struct FrfEvaluatorOptions {
   /// Frequencies per block of the modal GEMM (keeps the block's buffers in the L2 cache).
   int block_size = 256;
 };
+/// Every field equal (a set-up made with one set of options serves the other).
+bool operator==(const FrfEvaluatorOptions& a, const FrfEvaluatorOptions& b);
 
 /// What Create() found and chose.
 struct FrfSetupSummary {
