@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes every file reader with libFuzzer (clang, AddressSanitizer, UBSan): installs clang and its
 # runtime when missing, configures and builds ./build-fuzz (-DSTAGEFIT_BUILD_FUZZERS=ON), then runs
-# each target of tests/fuzz/ for a fixed time on a fresh copy of its seeds (tests/fuzz/corpus/) and
+# each target of tests/fuzz/ for a fixed time (or number of inputs) on a fresh copy of its seeds (tests/fuzz/corpus/) and
 # stored crash inputs (tests/fuzz/regressions/). Fails when a target crashes, hangs (-timeout), uses
 # more than 2 GB (-rss_limit_mb), leaks or throws anything but InputError. Crashing inputs go to
 # build-fuzz/artifacts/<target>/, logs to build-fuzz/logs/.
@@ -11,8 +11,9 @@
 #        bash scripts/fuzz.sh --make-corpus    regenerate the seeds of tests/fuzz/corpus/
 #   --seconds N      time per target (default 15: about 1.5 minutes for all of them)
 #   --runs N         instead of a time, N executions per target from a fixed seed (--seed, default
-#                    1): the same inputs on every machine, as the test command runs it, so that a
-#                    failure there is the change's and can be replayed; exploring is for --seconds
+#                    1), as the test command runs it: the same amount of work on every machine
+#                    however fast (the coverage feedback still varies a little); exploring for new
+#                    failures is for --seconds
 #   --targets a,b    only these targets (names as in tests/fuzz/, e.g. uff_measurement_fuzz)
 #   --jobs N         parallel fuzzing processes per target (libFuzzer -fork=N; default 1)
 #   --keep-corpus    keep and grow build-fuzz/corpus/<target>/ across runs instead of starting
@@ -39,7 +40,7 @@ while [ $# -gt 0 ]; do
     --keep-corpus) keep_corpus=1; shift ;;
     --replay) mode=replay; shift ;;
     --make-corpus) mode=make-corpus; shift ;;
-    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
     *) echo "fuzz: unknown argument '$1' (see --help)" >&2; exit 1 ;;
   esac
 done

@@ -15,5 +15,5 @@ else
 fi
 ctest --output-on-failure -j"$(nproc)" --timeout 600
 # Then a short libFuzzer pass over every file reader (clang build in ./build-fuzz): 100000 inputs
-# per target from a fixed seed, the same on every machine (exploring: scripts/fuzz.sh --seconds N).
+# per target from a fixed seed: the same amount of work on every machine (exploring: --seconds N).
 cd .. && bash scripts/fuzz.sh --runs 100000 --seed 1

@@ -20,6 +20,7 @@ bool operator==(const FrfEvaluatorOptions& a, const FrfEvaluatorOptions& b) {
          a.check_tolerance == b.check_tolerance && a.lowest_frequency_hz == b.lowest_frequency_hz &&
          a.block_size == b.block_size;
 }
+
 namespace {
 
 using Complex = std::complex<double>;
