@@ -697,24 +697,9 @@ double Comparison::Error(const model::ModelSpec& spec) const {
   return r.norm();
 }
 
-namespace {
-
-bool SameMatrix(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
-}
-
-bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
-  return SameMatrix(a.M, b.M) && SameMatrix(a.C, b.C) && SameMatrix(a.K, b.K) && SameMatrix(a.K_loss, b.K_loss) &&
-         SameMatrix(a.B0, b.B0) && SameMatrix(a.B2, b.B2) && SameMatrix(a.Cq, b.Cq) && SameMatrix(a.D0, b.D0) &&
-         a.delay_s == b.delay_s && a.input_names == b.input_names && a.output_names == b.output_names &&
-         a.dof_names == b.dof_names;
-}
-
-}  // namespace
-
 response::FrfEvaluator& ModelWorkspace::SetUp(const model::SecondOrderSystem& system,
                                               const response::FrfEvaluatorOptions& options) {
-  if (setup_ && options_ == options && SameSystem(setup_->system(), system)) {
+  if (setup_ && options_ == options && model::SameSystem(setup_->system(), system)) {
     ++num_reused;
     return *setup_;
   }

@@ -50,16 +50,6 @@ bool SameGeometryCorrections(const model::ModelSpec& a, const model::ModelSpec& 
 
 }  // namespace
 
-bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
-  return a.num_dofs() == b.num_dofs() && a.dof_names == b.dof_names && a.input_names == b.input_names &&
-         a.output_names == b.output_names && a.B0 == b.B0 && a.B2 == b.B2 && a.Cq == b.Cq && a.D0 == b.D0 &&
-         a.delay_s == b.delay_s;
-}
-
-bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b) {
-  return SameCoordinatesAndChannels(a, b) && a.M == b.M && a.C == b.C && a.K == b.K && a.K_loss == b.K_loss;
-}
-
 response::DynamicStiffnessDerivative SystemDifference(const model::SecondOrderSystem& plus,
                                                       const model::SecondOrderSystem& minus, double h,
                                                       const std::string& name) {
@@ -78,14 +68,17 @@ ColumnRoute ChooseColumnRoute(const compare::Comparison& comparison, const model
   *plus_system = comparison.ModelSystem(plus);
   *minus_system = comparison.ModelSystem(minus);
   if (SameGeometryCorrections(at, plus) && SameGeometryCorrections(at, minus) &&
-      SameCoordinatesAndChannels(at_system, *plus_system) && SameCoordinatesAndChannels(at_system, *minus_system)) {
+      model::SameCoordinatesAndChannels(at_system, *plus_system) &&
+      model::SameCoordinatesAndChannels(at_system, *minus_system)) {
     return ColumnRoute::kSystemDifference;
   }
-  if (SameSystem(at_system, *plus_system) && SameSystem(at_system, *minus_system)) return ColumnRoute::kMeasuredDifference;
+  if (model::SameSystem(at_system, *plus_system) && model::SameSystem(at_system, *minus_system)) {
+    return ColumnRoute::kMeasuredDifference;
+  }
   auto same_but_delay = [&](const model::SecondOrderSystem& other) {
     model::SecondOrderSystem undelayed = other;
     undelayed.delay_s = at_system.delay_s;
-    return SameSystem(at_system, undelayed);
+    return model::SameSystem(at_system, undelayed);
   };
   if (SameGeometryCorrections(at, plus) && SameGeometryCorrections(at, minus) && same_but_delay(*plus_system) &&
       same_but_delay(*minus_system)) {

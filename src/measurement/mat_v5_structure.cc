@@ -105,7 +105,7 @@ class StructureChecker {
   // element it would read from somewhere other than where this check looked is rejected.
   void Matrix(Source& src, std::uint64_t bytes, int depth) {
     if (depth > kMaxMatNesting) {
-      Fail("cells or structs nested more than " + std::to_string(kMaxMatNesting) + " levels deep");
+      Fail("cells nested more than " + std::to_string(kMaxMatNesting) + " levels deep");
     }
     if (bytes == 0) return;  // an empty element: MATLAB writes them for empty cells
     std::uint64_t left = bytes;
@@ -165,20 +165,20 @@ class StructureChecker {
     const double children = array_class == kCellClass ? numel : 0.0;  // matrix elements that follow
     // Each is a matrix element of at least a tag (8 bytes).
     if (children * 8.0 > static_cast<double>(left)) {
-      Fail("declares " + std::to_string(children) + " cells or fields but only " +
+      Fail("declares " + std::to_string(children) + " cells but only " +
            std::to_string(left) + " bytes follow");
     }
     for (std::uint64_t i = 0; i < static_cast<std::uint64_t>(children); ++i) {
       unsigned char tag[8];
-      if (left < 8 || !src.Read(tag, 8)) Fail("cell or field " + std::to_string(i + 1) + " is missing");
+      if (left < 8 || !src.Read(tag, 8)) Fail("cell " + std::to_string(i + 1) + " is missing");
       left -= 8;
       const std::uint32_t type = U32(tag), size = U32(tag + 4);
       if (type != kMiMatrix) {
-        Fail("cell or field " + std::to_string(i + 1) + " has data type " + std::to_string(type) +
+        Fail("cell " + std::to_string(i + 1) + " has data type " + std::to_string(type) +
              ", expected a matrix (14)");
       }
       if (size > left) {
-        Fail("cell or field " + std::to_string(i + 1) + " declares " + std::to_string(size) +
+        Fail("cell " + std::to_string(i + 1) + " declares " + std::to_string(size) +
              " bytes but only " + std::to_string(left) + " follow");
       }
       Matrix(src, size, depth + 1);

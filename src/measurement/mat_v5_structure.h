@@ -1,7 +1,7 @@
 #pragma once
 // Checks the element tree of a MATLAB .mat file before matio reads it (used by mat_file.cc and
-// raw_hammer_file.cc). matio allocates by the sizes a file declares (dimensions, names, cell and
-// struct counts) before it reads them, so a damaged size field would exhaust memory inside matio.
+// raw_hammer_file.cc). matio allocates by the sizes a file declares (dimensions, names,
+// cell counts) before it reads them, so a damaged size field would exhaust memory inside matio.
 // File names in the messages, v5 variables by number (1 = first), v7.3 objects by HDF5 path.
 
 #include <cstdint>
@@ -9,7 +9,7 @@
 
 namespace stagefit::measurement::internal {
 
-/// Largest number of dimensions and nesting depth (cells and structs) accepted in a .mat file.
+/// Largest number of dimensions and nesting depth (cells) accepted in a .mat file.
 inline constexpr int kMaxMatRank = 32;
 inline constexpr int kMaxMatNesting = 32;
 

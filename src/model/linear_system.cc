@@ -37,6 +37,16 @@ Matrix6d AxesFromWorld(const Eigen::Matrix3d& R_WF) {
 
 }  // namespace
 
+bool SameCoordinatesAndChannels(const SecondOrderSystem& a, const SecondOrderSystem& b) {
+  return a.num_dofs() == b.num_dofs() && a.dof_names == b.dof_names && a.input_names == b.input_names &&
+         a.output_names == b.output_names && a.B0 == b.B0 && a.B2 == b.B2 && a.Cq == b.Cq && a.D0 == b.D0 &&
+         a.delay_s == b.delay_s;
+}
+
+bool SameSystem(const SecondOrderSystem& a, const SecondOrderSystem& b) {
+  return SameCoordinatesAndChannels(a, b) && a.M == b.M && a.C == b.C && a.K == b.K && a.K_loss == b.K_loss;
+}
+
 SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<InputSpec>& inputs,
                               const std::vector<OutputSpec>& outputs) {
   const ModelSpec& spec = model.spec();

@@ -55,9 +55,6 @@ struct BoundRule {
 ///    residuals.
 enum class ColumnRoute { kAnalytic, kSystemDifference, kMeasuredDifference, kDelayDifference, kResidualDifference };
 
-/// Same generalised coordinates, channels and delay: the systems differ at most in M, C, K, K_loss.
-bool SameCoordinatesAndChannels(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b);
-bool SameSystem(const model::SecondOrderSystem& a, const model::SecondOrderSystem& b);
 /// (plus - minus) / (2 h) of the dynamic stiffness, as a derivative named `name`.
 response::DynamicStiffnessDerivative SystemDifference(const model::SecondOrderSystem& plus,
                                                       const model::SecondOrderSystem& minus, double h,

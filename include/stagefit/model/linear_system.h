@@ -68,6 +68,12 @@ struct SecondOrderSystem {
   int num_outputs() const { return static_cast<int>(Cq.rows()); }
 };
 
+/// Same generalised coordinates, channels and delay (bit for bit): the systems differ at most in M,
+/// C, K and K_loss.
+bool SameCoordinatesAndChannels(const SecondOrderSystem& a, const SecondOrderSystem& b);
+/// The same system, every matrix, the delay and the names equal bit for bit.
+bool SameSystem(const SecondOrderSystem& a, const SecondOrderSystem& b);
+
 /// Builds the system. Throws InputError naming the input/output and the unknown body, frame or joint,
 /// or an imposed joint DoF used as an input (it does no work) or output.
 SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<InputSpec>& inputs,
