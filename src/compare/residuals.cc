@@ -178,6 +178,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   const double cap = options.coherence_weight_cap;
   c.weight_cap_ = cap;
   c.min_element_snr_ = options.min_element_snr;
+  c.measured_side_cache_ = std::make_shared<MeasuredSideCache>();
   c.weights_.assign(nf, Eigen::MatrixXd());
   c.snr_.assign(nf, Eigen::MatrixXd());
   c.measured_.assign(nf, Eigen::MatrixXcd());
@@ -512,36 +513,38 @@ const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelS
   return CorrectedProjection(spec, &P, &Q) ? Reproject(P, Q, storage) : measured_;
 }
 
-void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const {
+std::shared_ptr<const Comparison::MeasuredSide> Comparison::MeasuredSideFor(const model::ModelSpec& spec) const {
   Eigen::MatrixXd P, Q;
-  const bool reprojected = CorrectedProjection(spec, &P, &Q);
-  side->values = reprojected ? &Reproject(P, Q, &side->storage) : &measured_;
-  if (!reprojected || raw_noise_var_.empty()) {
+  if (!CorrectedProjection(spec, &P, &Q) || raw_noise_var_.empty()) {
+    auto side = std::make_shared<MeasuredSide>();
+    if (P.size()) {
+      Reproject(P, Q, &side->reprojected);
+    } else {
+      side->declared = &measured_;
+    }
     side->weights.resize(points_.size());
     for (size_t p = 0; p < points_.size(); ++p) side->weights[p] = points_[p].weight;
     side->norm = weight_norm_;
-    return;
+    return side;
   }
-  side->weights = ReprojectedWeights(*side->values, P, Q);
+  MeasuredSideCache* cache = measured_side_cache_.get();
+  if (cache) {
+    std::lock_guard<std::mutex> lock(cache->mutex);
+    auto& entries = cache->entries;
+    for (size_t k = 0; k < entries.size(); ++k) {
+      if (entries[k].P == P && entries[k].Q == Q) {
+        std::rotate(entries.begin(), entries.begin() + static_cast<long>(k), entries.begin() + static_cast<long>(k) + 1);
+        ++cache->num_hits;
+        return entries.front().side;
+      }
+    }
+  }
+  auto side = std::make_shared<MeasuredSide>();
+  Reproject(P, Q, &side->reprojected);
+  side->weights = ReprojectedWeights(side->reprojected, P, Q);
   // An off-diagonal element whose re-projected median SNR is below min_element_snr is noise now, as at
   // Create(): it stops counting (header), decided on the whole grid (OnFrequencies()).
-  Eigen::MatrixXi noise;
-  if (!element_reference_) {
-    noise = NoiseElements(side->weights);
-  } else {
-    NoiseElementsCache& cache = *noise_elements_cache_;
-    {
-      std::lock_guard<std::mutex> lock(cache.mutex);
-      if (cache.P.size() && cache.P == P && cache.Q == Q) noise = cache.noise;
-    }
-    if (!noise.size()) {
-      noise = element_reference_->NoiseElementsUnder(P, Q);
-      std::lock_guard<std::mutex> lock(cache.mutex);
-      cache.P = P;
-      cache.Q = Q;
-      cache.noise = noise;
-    }
-  }
+  const Eigen::MatrixXi noise = element_reference_ ? element_reference_->NoiseElementsUnder(P, Q) : NoiseElements(side->weights);
   double sum_w2 = 0.0;
   for (size_t p = 0; p < points_.size(); ++p) {
     const ElementIndex idx = used_elements_[points_[p].element];
@@ -549,6 +552,20 @@ void Comparison::SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* sid
     sum_w2 += side->weights[p] * side->weights[p];
   }
   side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
+  if (cache) {
+    std::lock_guard<std::mutex> lock(cache->mutex);
+    auto& entries = cache->entries;
+    ++cache->num_misses;
+    if (entries.size() == MeasuredSideCache::kCapacity) entries.pop_back();
+    entries.insert(entries.begin(), {P, Q, side});
+  }
+  return side;
+}
+
+std::pair<int, int> Comparison::measured_side_reuse() const {
+  if (!measured_side_cache_) return {0, 0};
+  std::lock_guard<std::mutex> lock(measured_side_cache_->mutex);
+  return {measured_side_cache_->num_hits, measured_side_cache_->num_misses};
 }
 
 std::vector<double> Comparison::ReprojectedWeights(const std::vector<Eigen::MatrixXcd>& values, const Eigen::MatrixXd& P,
@@ -599,7 +616,7 @@ Eigen::MatrixXi Comparison::NoiseElementsUnder(const Eigen::MatrixXd& P, const E
 Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   Comparison c = *this;
   c.element_reference_ = element_reference_ ? element_reference_ : std::make_shared<const Comparison>(*this);
-  c.noise_elements_cache_ = std::make_shared<NoiseElementsCache>();
+  c.measured_side_cache_ = std::make_shared<MeasuredSideCache>();
   const int nf = num_frequencies();
   std::vector<int> index(static_cast<size_t>(nf), -1);
   for (size_t k = 0; k < kept.size(); ++k) {
@@ -738,17 +755,17 @@ void Comparison::ResidualsWithModelResponse(const model::ModelSpec& spec, const 
   STAGEFIT_ASSERT(r != nullptr, "r must not be null");
   STAGEFIT_ASSERT(model_values.rows() == num_frequencies() && model_values.cols() == num_outputs() * num_inputs(),
                   "model_values must be num_frequencies() x (num_outputs() * num_inputs())");
-  MeasuredSide side;
-  SetMeasuredSide(spec, &side);
+  const std::shared_ptr<const MeasuredSide> measured_side = MeasuredSideFor(spec);
+  const MeasuredSide& side = *measured_side;
   Eigen::VectorXcd e;
   if (delay_change_s == 0.0) {
-    CalcLogErrors(model_values, *side.values, &e);
+    CalcLogErrors(model_values, side.values(), &e);
   } else {
     Eigen::MatrixXcd delayed = model_values;
     for (int k = 0; k < num_frequencies(); ++k) {
       delayed.row(k) *= std::polar(1.0, -2.0 * M_PI * frequency_hz_(k) * delay_change_s);
     }
-    CalcLogErrors(delayed, *side.values, &e);
+    CalcLogErrors(delayed, side.values(), &e);
   }
   WeightResiduals(e, side, r);
 }
@@ -785,10 +802,10 @@ void Comparison::ResidualsAndJacobian(const model::ModelSpec& spec,
   } else {
     evaluator.Evaluate(frequency_hz_, quantity, &frf.frf);
   }
-  MeasuredSide side;
-  SetMeasuredSide(spec, &side);
+  const std::shared_ptr<const MeasuredSide> measured_side = MeasuredSideFor(spec);
+  const MeasuredSide& side = *measured_side;
   Eigen::VectorXcd e;
-  CalcLogErrors(frf.frf.values, *side.values, &e);
+  CalcLogErrors(frf.frf.values, side.values(), &e);
   WeightResiduals(e, side, r);
   if (J == nullptr) return;
   if (!want_jacobian) {
@@ -825,9 +842,9 @@ ComparisonResult Comparison::Evaluate(const model::ModelSpec& spec) const {
   for (int k = 0; k < nf; ++k) {
     for (int i = 0; i < num_inputs(); ++i) values.row(k).segment(no * i, no) = result.model[k].col(i).transpose();
   }
-  MeasuredSide side;
-  SetMeasuredSide(spec, &side);
-  result.measured = *side.values;
+  const std::shared_ptr<const MeasuredSide> measured_side = MeasuredSideFor(spec);
+  const MeasuredSide& side = *measured_side;
+  result.measured = side.values();
   Eigen::VectorXcd e;
   CalcLogErrors(values, result.measured, &e);
 

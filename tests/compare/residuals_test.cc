@@ -424,6 +424,49 @@ TEST(OnFrequencies, KeepsTheWholeGridsElementsUnderACorrection) {
   EXPECT_THROW(whole.OnFrequencies({}), InputError);
 }
 
+// The measured side under a correction (the raw data re-projected, its weights, the elements that
+// stop counting) is taken from the sides computed lately for the same projection, and what is taken is
+// what a comparison computing it afresh gives, to the bit; a side pushed out by newer ones is computed
+// again, the same.
+TEST(MeasuredSideReuse, GivesWhatAFreshComparisonComputes) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 33013, synthetic::EvalLoopCaseOptions(2, 150, 301));
+  auto corrected = [&](double ry) {
+    model::ModelSpec spec = nominal;
+    model::ApplyEffect(spec, model::ParseEffect("sensor-geometry@a3z:dx=0.0143,ry=" + std::to_string(ry), spec));
+    return spec;
+  };
+  const Comparison comparison = Comparison::Create(nominal, c.measurement);
+  ASSERT_TRUE(comparison.weights_are_snr());  // with coherence: the re-projected weights are computed
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(0, 0));
+  const double first = comparison.Error(corrected(-0.3378));
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(0, 1));
+  // The same correction with other stiffnesses: the same side.
+  model::ModelSpec stiffer = corrected(-0.3378);
+  const auto k = model::MatchParameters(stiffer, {"hexapod.k.Dz"});
+  model::SetParameter(stiffer, k[0], 1.2 * model::GetParameter(stiffer, k[0]));
+  const double again = comparison.Error(corrected(-0.3378));
+  const double stiffer_error = comparison.Error(stiffer);
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(2, 1));
+  EXPECT_EQ(again, first);
+  EXPECT_EQ(stiffer_error, Comparison::Create(nominal, c.measurement).Error(stiffer));
+  EXPECT_NE(stiffer_error, first);
+  // A copy shares what was computed; sixteen other corrections push the first one out.
+  const Comparison copy = comparison;
+  for (int i = 1; i <= 16; ++i) copy.Error(corrected(-0.3378 + 0.01 * i));
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(2, 17));
+  EXPECT_EQ(copy.Error(corrected(-0.3378)), first);
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(2, 18));
+  EXPECT_EQ(Comparison::Create(nominal, c.measurement).Error(corrected(-0.3378)), first);
+  // A comparison on fewer frequencies keeps its own sides.
+  std::vector<int> every_second;
+  for (int f = 0; f < comparison.num_frequencies(); f += 2) every_second.push_back(f);
+  const Comparison half = comparison.OnFrequencies(every_second);
+  half.Error(corrected(-0.3378));
+  EXPECT_EQ(half.measured_side_reuse(), std::make_pair(0, 1));
+  EXPECT_EQ(comparison.measured_side_reuse(), std::make_pair(2, 18));
+}
+
 TEST(ParseComparisonSpace, RejectsUnknownNames) {
   EXPECT_EQ(ParseComparisonSpace("raw", "--space"), ComparisonSpace::kRaw);
   EXPECT_EQ(ParseComparisonSpace("compliance", "--space"), ComparisonSpace::kCompliance);

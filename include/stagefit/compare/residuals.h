@@ -81,6 +81,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "stagefit/measurement/frf_data.h"
@@ -330,6 +331,10 @@ class Comparison {
   /// 7.76 against 2.13 on the whole grid), and a diagnosis' search ranked its candidates by that element.
   /// Throws InputError when `kept` leaves no point.
   Comparison OnFrequencies(const std::vector<int>& kept) const;
+  /// How many times the measured side under a model's geometry corrections (the raw data re-projected,
+  /// its weights and the elements that stop counting) was taken from the sides computed lately for the
+  /// same projection, and how many times it was computed; shared by this comparison's copies.
+  std::pair<int, int> measured_side_reuse() const;
   /// The names of the channels whose geometry a sensor-geometry effect can correct: the raw outputs
   /// and inputs (in raw space, or in compliance space for a measurement projected here); empty for a
   /// measurement given already projected.
@@ -365,12 +370,15 @@ class Comparison {
   model::SecondOrderSystem BuildModelSystem(const model::AssembledModel& model) const;
   // The measured side for one model: values (MeasuredFor()) and the points' weights with their norm.
   struct MeasuredSide {
-    std::vector<Eigen::MatrixXcd> storage;
-    const std::vector<Eigen::MatrixXcd>* values = nullptr;
-    std::vector<double> weights;  // per point
-    double norm = 1.0;            // sqrt(sum w^2)
+    const std::vector<Eigen::MatrixXcd>* declared = nullptr;  // measured_ as declared, or else
+    std::vector<Eigen::MatrixXcd> reprojected;                // re-projected under the model's corrections
+    std::vector<double> weights;                              // per point
+    double norm = 1.0;                                        // sqrt(sum w^2)
+    const std::vector<Eigen::MatrixXcd>& values() const { return declared ? *declared : reprojected; }
   };
-  void SetMeasuredSide(const model::ModelSpec& spec, MeasuredSide* side) const;
+  // The side for `spec`: a re-projected one from measured_side_cache_ when the same P and Q were
+  // asked for lately, else computed (and cached).
+  std::shared_ptr<const MeasuredSide> MeasuredSideFor(const model::ModelSpec& spec) const;
   // The points' weights with the measurement re-projected to `values` by P and Q (header).
   std::vector<double> ReprojectedWeights(const std::vector<Eigen::MatrixXcd>& values, const Eigen::MatrixXd& P,
                                          const Eigen::MatrixXd& Q) const;
@@ -421,15 +429,23 @@ class Comparison {
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the
-  // elements that stop counting under re-projection, and its last decision (they depend on P and Q
-  // alone, and the fits of a search hold a channel's correction over many evaluations).
-  struct NoiseElementsCache {
-    std::mutex mutex;
-    Eigen::MatrixXd P, Q;
-    Eigen::MatrixXi noise;
-  };
+  // elements that stop counting under re-projection.
   std::shared_ptr<const Comparison> element_reference_;
-  std::shared_ptr<NoiseElementsCache> noise_elements_cache_;
+  // The measured sides re-projected lately, most recent first, each with its P and Q (the side depends
+  // on them alone). A fit evaluates many models under one correction: the residuals and then the
+  // Jacobian at an accepted step, every differenced column of a parameter other than the correction's.
+  // Shared by the copies of one comparison (they hold the same data) and by their threads.
+  struct MeasuredSideCache {
+    static constexpr size_t kCapacity = 16;
+    struct Entry {
+      Eigen::MatrixXd P, Q;
+      std::shared_ptr<const MeasuredSide> side;
+    };
+    std::mutex mutex;
+    std::vector<Entry> entries;
+    int num_hits = 0, num_misses = 0;
+  };
+  std::shared_ptr<MeasuredSideCache> measured_side_cache_;
 };
 
 }  // namespace stagefit::compare
