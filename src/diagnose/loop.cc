@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -338,6 +339,49 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
   return moved;
 }
 
+std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                               const LoopOptions& options, model::ModelSpec* current,
+                                               std::vector<LoopStep>* history) {
+  std::vector<std::string> merged;
+  const size_t first = as_given.effects.size();
+  for (const model::EffectDefinition& one : model::EffectCatalogue()) {
+    if (one.mimicked_together_by.empty() || !one.from_mimics) continue;
+    // The joints (a location's part before its first '.') holding two or more added effects of those kinds.
+    std::map<std::string, std::vector<model::Effect>> at_joint;
+    for (size_t k = first; k < current->effects.size(); ++k) {
+      const model::Effect& e = current->effects[k];
+      const auto& kinds = one.mimicked_together_by;
+      if (std::find(kinds.begin(), kinds.end(), e.name) != kinds.end()) at_joint[e.location.substr(0, e.location.find('.'))].push_back(e);
+    }
+    for (const auto& [joint, mimics] : at_joint) {
+      const std::vector<std::string> locations = model::EffectLocations(*current, one.name);
+      if (mimics.size() < 2 || std::find(locations.begin(), locations.end(), joint) == locations.end()) continue;
+      std::vector<model::Effect> others;
+      for (const model::Effect& e : current->effects) {
+        if (std::find(mimics.begin(), mimics.end(), e) == mimics.end()) others.push_back(e);
+      }
+      model::ModelSpec without = *current;
+      model::SetEffects(without, others);
+      model::Effect effect{one.name, joint, one.from_mimics(without, joint, mimics), {}};
+      std::vector<model::Effect> with = others;
+      with.push_back(effect);
+      // From what the effects make (the loop's state with the one effect in their place) and from the
+      // model as given, the better kept.
+      auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
+      // One effect in place of several, as close to the data as they are (within kRigidLimitTolerance).
+      if (!(trial_error <= (1 + kRigidLimitTolerance) * history->back().error)) continue;
+      std::string keys;
+      for (const model::Effect& e : mimics) keys += (keys.empty() ? "" : ", ") + Key(e);
+      const model::Effect& to = trial.effects.back();
+      history->push_back({"merge " + keys + " into " + Key(to), to.ToString(), trial_error});
+      merged.push_back(keys + " -> " + Key(to));
+      *current = trial;
+      break;  // the other joints' effects are looked at again in the next call
+    }
+  }
+  return merged;
+}
+
 std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                                 const compare::Comparison& comparison, const LoopOptions& options,
                                                 model::ModelSpec* current, std::vector<LoopStep>* history) {
@@ -389,6 +433,13 @@ std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given
   history->push_back({action + ", refit", "", trial_error});
   *current = trial;
   return held;
+}
+
+bool KeepModelAfterHold(double error_before, double error_after, bool all_plausible, const compare::NoiseFloor& floor,
+                        const LoopOptions& options) {
+  const double times = TimesFloor(error_after, floor);  // NaN when the floor is unknown: not kept
+  return all_plausible && times <= kDoneTimesFloor &&
+         (error_after <= (1 + kRigidLimitTolerance) * error_before || times <= options.rounds_above_times_floor);
 }
 
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options) {
@@ -521,6 +572,12 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   run_rounds(options.max_rounds, false);
   // The steps after the rounds: effects moved, a turned channel, rigid limits; then the plausibility check.
   auto finish = [&] {
+    // Several effects one effect can be (two couplings of a joint: its stiffness centre off its origin).
+    for (const std::string& change : MergeMimickingEffects(spec, comparison, options, &current, &summary.history)) {
+      say("merged " + change + ": error " + std::to_string(summary.history.back().error));
+      drop_unneeded(current.effects.back());
+      summary.effects_added = EffectTexts(current.effects);
+    }
     if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
       const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
       for (const std::string& change : moved) say("moved " + change);
@@ -550,9 +607,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // At the floor with a length or turn at the bound of its range: the effect stands in for something
   // else beside what it is (seed 29011: a1z turned 20 degrees and a servo of ry.Ry ended as a1z's
   // correction with dx at its 5 cm bound, 1.01x the floor). The parameter is held at its nominal value,
-  // the model refitted, and more rounds run; their model is taken when it ends at the floor with every
-  // effect plausible and an error within kRigidLimitTolerance of the model's before (what the bound
-  // stood in for is then found), and otherwise the loop goes back to the model before.
+  // the model refitted, and more rounds run; their model is taken by KeepModelAfterHold(), and
+  // otherwise the loop goes back to the model before.
   if (options.hold_rounds > 0 && at_floor(summary.history.back().error) && !summary.implausible_effects.empty()) {
     const LoopSummary before = summary;
     const model::ModelSpec before_model = current;
@@ -564,10 +620,15 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       // A round runs even at the floor: the held effect can bend to mimic what is missing (29011: held
       // at dx = 0, a1z's correction turned 10 degrees about y to take the servo, 1.04x the floor).
       run_rounds(options.hold_rounds, true);
+      // The effects added before the hold earn their place again beside the held one: one that stood in
+      // beside the free correction can be surplus now (seed 51007: h1's correction, added at 1.75x for
+      // a3z turned 17 degrees, stayed beside a3z's correction held at that turn, 0.016 off the truth).
+      const auto held_effect = std::find_if(current.effects.begin() + static_cast<long>(spec.effects.size()), current.effects.end(),
+                                            [](const model::Effect& e) { return !e.held.empty(); });
+      if (held_effect != current.effects.end()) drop_unneeded(model::Effect(*held_effect));
       finish();
-      const double error = summary.history.back().error;
-      if (!(at_floor(error) && summary.implausible_effects.empty() &&
-            error <= (1 + kRigidLimitTolerance) * before.history.back().error)) {
+      if (!KeepModelAfterHold(before.history.back().error, summary.history.back().error,
+                              summary.implausible_effects.empty(), floor, options)) {
         std::vector<LoopStep> tried = summary.history;
         summary = before;
         current = before_model;

@@ -220,6 +220,40 @@ void ApplyJointOffset(ModelSpec& spec, const Effect& e, const Getter& get) {
   j.origin_W += Eigen::Vector3d(get("dx"), get("dy"), get("dz"));
 }
 
+// The stiffness centre of a joint moved by r = (dx, dy, dz) (axes of W, those of the joint here): the
+// joint's springs act on u + theta x r, so about the origin the stiffness gains the couplings
+// K(Dx,Ry) = kx dz, K(Dy,Rx) = -ky dz, K(Dx,Rz) = -kx dy, K(Dz,Rx) = kz dy, K(Dy,Rz) = ky dx,
+// K(Dz,Ry) = -kz dx (and the damping the same with the c's; tests/model/effects_test.cc checks the
+// equivalence to rounding). Each coupling given is one equation for one component; a component is
+// the least-squares solution of its equations, 0 without any.
+Params JointOffsetFromCouplings(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& couplings) {
+  const JointSpec& j = before.joints[RequireJoint(before, joint, "joint-offset")];
+  // (translation, rotation, component of r, sign): K(translation, rotation) = sign k_translation r_component
+  struct Term {
+    Dof translation, rotation;
+    int component;
+    double sign;
+  };
+  static const Term kTerms[] = {{Dof::kDx, Dof::kRy, 2, 1}, {Dof::kDy, Dof::kRx, 2, -1}, {Dof::kDx, Dof::kRz, 1, -1},
+                                {Dof::kDz, Dof::kRx, 1, 1}, {Dof::kDy, Dof::kRz, 0, 1},  {Dof::kDz, Dof::kRy, 0, -1}};
+  double num[3] = {0, 0, 0}, den[3] = {0, 0, 0};
+  for (const Effect& e : couplings) {
+    if (e.name != "coupled-stiffness") continue;
+    const JointDofLocation l = ParseJointDof(before, e.location, e.name);
+    if (l.joint != RequireJoint(before, joint, "joint-offset")) continue;
+    for (const Term& t : kTerms) {
+      if (!((l.a == t.translation && l.b == t.rotation) || (l.a == t.rotation && l.b == t.translation))) continue;
+      const double a = t.sign * j.stiffness[index(t.translation)];
+      num[t.component] += a * e.parameters.at("k");
+      den[t.component] += a * a;
+    }
+  }
+  Params p;
+  const char* names[3] = {"dx", "dy", "dz"};
+  for (int i = 0; i < 3; ++i) p[names[i]] = den[i] > 0 ? num[i] / den[i] : 0.0;
+  return p;
+}
+
 void ApplyCoupling(ModelSpec& spec, const Effect& e, const Getter& get) {
   JointDofLocation l = ParseJointDof(spec, e.location, e.name);
   if (!l.pair || l.a == l.b) throw InputError("effect coupled-stiffness: location '" + e.location + "' must be <joint>.<A>-<B>");
@@ -377,6 +411,8 @@ std::vector<EffectDefinition> MakeCatalogue() {
              Format(" is offset by (%.0f, %.0f, %.0f) mm", 1e3 * Get(e, "dx"), 1e3 * Get(e, "dy"), 1e3 * Get(e, "dz")) +
              " from where the model puts it";
     };
+    d.mimicked_together_by = {"coupled-stiffness"};
+    d.from_mimics = JointOffsetFromCouplings;
     c.push_back(d);
   }
   {

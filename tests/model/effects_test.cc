@@ -181,6 +181,77 @@ TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
   EXPECT_EQ(rocking, 3);
 }
 
+// A joint's stiffness centre moved by r: its springs act on u + theta x r, so about the origin the
+// joint is stiffer by the couplings K(Dx,Ry) = kx dz, K(Dy,Rx) = -ky dz, K(Dx,Rz) = -kx dy,
+// K(Dz,Rx) = kz dy, K(Dy,Rz) = ky dx, K(Dz,Ry) = -kz dx, by k r^2 on the rotations and between them
+// (the damping alike). The joint-offset effect is that joint to the eigen-solver's rounding (the
+// modes agree to 1e-9 of their eigenvalues), and the joint-offset's from_mimics gives
+// back r from the couplings (the loop's merge starts there).
+TEST(Effects, AJointOffsetIsTheCouplingsOfItsStiffnessCentre) {
+  const ModelSpec nominal = DefaultModelSpec();
+  const EffectDefinition& offset = FindEffectDefinition("joint-offset");
+  ASSERT_EQ(offset.mimicked_together_by, std::vector<std::string>{"coupled-stiffness"});
+  for (const char* joint : {"rz", "hexapod"}) {
+    for (const Eigen::Vector3d r : {Eigen::Vector3d(0, 0, 0.05), Eigen::Vector3d(0.03, -0.04, 0.02)}) {
+      ModelSpec moved = nominal;
+      ApplyEffect(moved, Effect{"joint-offset", joint, {{"dx", r.x()}, {"dy", r.y()}, {"dz", r.z()}}, {}});
+      ModelSpec coupled = nominal;
+      JointSpec& j = coupled.joints[FindJoint(coupled, joint)];
+      ASSERT_EQ(j.R_WJ, Eigen::Matrix3d::Identity());
+      const auto k = j.stiffness, c = j.damping;
+      std::vector<Effect> couplings;
+      auto couple = [&](Dof a, Dof b, double sign, int component) {
+        const int t = static_cast<int>(a);
+        if (j.imposed[t] || j.imposed[static_cast<int>(b)]) return;
+        j.couplings.push_back({a, b, sign * k[t] * r(component), sign * c[t] * r(component)});
+        couplings.push_back(Effect{"coupled-stiffness", std::string(joint) + "." + std::string(name(a)) + "-" + std::string(name(b)),
+                                   {{"k", sign * k[t] * r(component)}}, {}});
+      };
+      couple(Dof::kDx, Dof::kRy, 1, 2);
+      couple(Dof::kDy, Dof::kRx, -1, 2);
+      couple(Dof::kDx, Dof::kRz, -1, 1);
+      couple(Dof::kDz, Dof::kRx, 1, 1);
+      couple(Dof::kDy, Dof::kRz, 1, 0);
+      couple(Dof::kDz, Dof::kRy, -1, 0);
+      const double add[3] = {k[1] * r.z() * r.z() + k[2] * r.y() * r.y(), k[0] * r.z() * r.z() + k[2] * r.x() * r.x(),
+                             k[0] * r.y() * r.y() + k[1] * r.x() * r.x()};
+      const double add_c[3] = {c[1] * r.z() * r.z() + c[2] * r.y() * r.y(), c[0] * r.z() * r.z() + c[2] * r.x() * r.x(),
+                               c[0] * r.y() * r.y() + c[1] * r.x() * r.x()};
+      // and between the rotations, K(Rx,Ry) = -kz dx dy, K(Rx,Rz) = -ky dx dz, K(Ry,Rz) = -kx dy dz
+      auto couple_rotations = [&](Dof a, Dof b, int t, double product) {
+        if (j.imposed[static_cast<int>(a)] || j.imposed[static_cast<int>(b)]) return;
+        j.couplings.push_back({a, b, -k[t] * product, -c[t] * product});
+      };
+      couple_rotations(Dof::kRx, Dof::kRy, 2, r.x() * r.y());
+      couple_rotations(Dof::kRx, Dof::kRz, 1, r.x() * r.z());
+      couple_rotations(Dof::kRy, Dof::kRz, 0, r.y() * r.z());
+      for (int i = 0; i < 3; ++i) {
+        if (j.imposed[3 + i]) continue;
+        j.stiffness[3 + i] += add[i];
+        j.damping[3 + i] += add_c[i];
+      }
+      // The generalised coordinates sit at each joint's origin, so the two systems' matrices differ
+      // (the offset moves the coordinates, the couplings stiffen them); their eigenvalues cannot.
+      const ModalAnalysis a = CalcModes(AssembledModel::Assemble(moved, "moved"));
+      const ModalAnalysis b = CalcModes(AssembledModel::Assemble(coupled, "coupled"));
+      const ModalAnalysis n = CalcModes(AssembledModel::Assemble(nominal, "nominal"));
+      ASSERT_EQ(a.modes.size(), b.modes.size());
+      double largest_change = 0;
+      for (size_t m = 0; m < a.modes.size(); ++m) {
+        const std::complex<double> la = a.modes[m].eigenvalue;
+        EXPECT_LT(std::abs(la - b.modes[m].eigenvalue), 1e-8 * std::abs(la)) << joint << " mode " << m;
+        largest_change = std::max(largest_change, std::abs(la - n.modes[m].eigenvalue) / std::abs(la));
+      }
+      EXPECT_GT(largest_change, 1e-3) << joint;  // the offset does move modes
+      // Back from the couplings (rz, whose Rz is imposed, has four of them, one for each of dx and dy).
+      const auto p = offset.from_mimics(nominal, joint, couplings);
+      EXPECT_NEAR(p.at("dz"), r.z(), 1e-12) << joint;
+      EXPECT_NEAR(p.at("dy"), r.y(), 1e-12) << joint;
+      EXPECT_NEAR(p.at("dx"), r.x(), 1e-12) << joint;
+    }
+  }
+}
+
 TEST(Effects, EffectsSurviveTheModelFileRoundTrip) {
   ModelSpec spec = DefaultModelSpec();
   for (const char* text : {"payload@hexapod:mass=3,z=0.05", "extra-body@rz:mass=4,k=1e7,kr=1e5", "servo-stiffness@rz.Rz",

@@ -85,6 +85,16 @@ struct EffectDefinition {
   /// applied to): no data can set them, and fits leave them at their value (a channel's correction:
   /// the offset along the channel's own direction and the turn about it). Empty when the effect has none.
   std::function<std::vector<std::string>(const ModelSpec& before, const Effect&)> redundant;
+  /// Effects of these kinds, two or more at the joint where this one would sit, can be this one effect
+  /// (a joint's stiffness centre off its origin couples the joint's translations with its rotations:
+  /// Dx-Ry and Dy-Rx, as two coupled-stiffness effects would). The loop tries this one in their place
+  /// (diagnose::MergeMimickingEffects). Empty when none.
+  std::vector<std::string> mimicked_together_by;
+  /// This effect's parameters at `joint` that make what `mimics` (effects of mimicked_together_by
+  /// there) make, on `before` (the model without them): where the merge starts. Set with
+  /// mimicked_together_by.
+  std::function<std::map<std::string, double>(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& mimics)>
+      from_mimics;
   /// A second one at a location that holds one already adds what the first one's parameters cannot (an
   /// extra body: a second local mode). Otherwise the two merge into one (two couplings of one pair
   /// are one coupling of their sum; two turns of a channel are one turn), and no second one is tried.
