@@ -570,7 +570,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     }
   };
   run_rounds(options.max_rounds, false);
-  // The steps after the rounds: effects moved, a turned channel, rigid limits; then the plausibility check.
+  // The steps after the rounds: effects merged and moved, a turned channel, rigid limits; then the
+  // plausibility check.
   auto finish = [&] {
     // Several effects one effect can be (two couplings of a joint: its stiffness centre off its origin).
     for (const std::string& change : MergeMimickingEffects(spec, comparison, options, &current, &summary.history)) {

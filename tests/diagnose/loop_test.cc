@@ -78,6 +78,15 @@ double DistanceToTruth(const model::ModelSpec& model, const synthetic::HiddenEff
   return (r - r_truth).norm();
 }
 
+// `nominal` with the joint stiffnesses of the case's truth (where the loop's rounds had brought them,
+// for tests of a step after the rounds).
+model::ModelSpec WithTruthStiffnesses(const model::ModelSpec& nominal, const synthetic::HiddenEffectCase& c) {
+  model::ModelSpec start = nominal;
+  EXPECT_EQ(c.truth.joints.size(), start.joints.size());
+  for (size_t j = 0; j < start.joints.size() && j < c.truth.joints.size(); ++j) start.joints[j].stiffness = c.truth.joints[j].stiffness;
+  return start;
+}
+
 // A coupling in the hexapod (seed 5008 of eval_loop: correlation -0.56, 600 Hz, 838 frequencies) that
 // the first stiffness fit cannot mimic: it stops at 35x the floor, and every candidate fitted from there
 // stays far above it (a joint offset was added at 27x). With the baseline that far
@@ -328,9 +337,7 @@ TEST(DropUnneededEffects, DropsAnEffectThatStoodInBesideACorrectionNowHeld) {
       "sensor-geometry@a3z:dx=-0.0236,dy=0,rx=0.30066481015096985,ry=1.6245651733523114e-05,rz=-2.4608138812394783e-06,"
       "held=dy,held=rx,held=ry,held=rz",
       nominal, channels);
-  model::ModelSpec start = nominal;
-  ASSERT_EQ(c.truth.joints.size(), start.joints.size());
-  for (size_t j = 0; j < start.joints.size(); ++j) start.joints[j].stiffness = c.truth.joints[j].stiffness;
+  const model::ModelSpec start = WithTruthStiffnesses(nominal, c);
   EffectFitOptions eo;
   eo.max_iterations = 50;
   const EffectsFit both = FitEffects(start, comparison, {h1, a3z}, {"*.k.*"}, eo);
@@ -363,8 +370,7 @@ TEST(MergeMimickingEffects, TakesAJointOffsetForTwoCouplingsItMakes) {
   ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "joint-offset@rz");
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
-  model::ModelSpec start = nominal;
-  for (size_t j = 0; j < start.joints.size(); ++j) start.joints[j].stiffness = c.truth.joints[j].stiffness;
+  const model::ModelSpec start = WithTruthStiffnesses(nominal, c);
   const model::Effect delay = model::ParseEffect("delay@acquisition:tau=0.000626", nominal);
   EffectFitOptions eo;
   eo.max_iterations = 50;
