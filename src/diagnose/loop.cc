@@ -353,8 +353,8 @@ std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given,
       const auto& kinds = one.mimicked_together_by;
       if (std::find(kinds.begin(), kinds.end(), e.name) != kinds.end()) at_joint[e.location.substr(0, e.location.find('.'))].push_back(e);
     }
+    const std::vector<std::string> locations = model::EffectLocations(*current, one.name);
     for (const auto& [joint, mimics] : at_joint) {
-      const std::vector<std::string> locations = model::EffectLocations(*current, one.name);
       if (mimics.size() < 2 || std::find(locations.begin(), locations.end(), joint) == locations.end()) continue;
       std::vector<model::Effect> others;
       for (const model::Effect& e : current->effects) {

@@ -227,7 +227,8 @@ void ApplyJointOffset(ModelSpec& spec, const Effect& e, const Getter& get) {
 // equivalence to rounding). Each coupling given is one equation for one component; a component is
 // the least-squares solution of its equations, 0 without any.
 Params JointOffsetFromCouplings(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& couplings) {
-  const JointSpec& j = before.joints[RequireJoint(before, joint, "joint-offset")];
+  const int joint_index = RequireJoint(before, joint, "joint-offset");
+  const JointSpec& j = before.joints[joint_index];
   // (translation, rotation, component of r, sign): K(translation, rotation) = sign k_translation r_component
   struct Term {
     Dof translation, rotation;
@@ -240,7 +241,7 @@ Params JointOffsetFromCouplings(const ModelSpec& before, const std::string& join
   for (const Effect& e : couplings) {
     if (e.name != "coupled-stiffness") continue;
     const JointDofLocation l = ParseJointDof(before, e.location, e.name);
-    if (l.joint != RequireJoint(before, joint, "joint-offset")) continue;
+    if (l.joint != joint_index) continue;
     for (const Term& t : kTerms) {
       if (!((l.a == t.translation && l.b == t.rotation) || (l.a == t.rotation && l.b == t.translation))) continue;
       const double a = t.sign * j.stiffness[index(t.translation)];
