@@ -1,3 +1,50 @@
+# Precompiled headers (STAGEFIT_PCH): the external and standard headers most files include are parsed
+# once per build instead of once per file, one header for the libraries and the CLI, one with
+# GoogleTest added for the test programs. A file's own includes still name what it uses: the
+# precompiled header only makes them cheap.
+set(STAGEFIT_PCH_HEADERS
+  <algorithm> <array> <cmath> <complex> <cstdint> <cstdio> <filesystem> <fstream> <functional>
+  <limits> <map> <memory> <optional> <random> <set> <sstream> <string> <string_view> <utility>
+  <vector> <Eigen/Dense> <nlohmann/json.hpp>)
+
+# stagefit_use_pch(target [TESTS]): gives target the shared precompiled header, compiled once by a
+# target of its own (stagefit_pch or stagefit_test_pch) and reused by every library or test program.
+function(stagefit_use_pch target)
+  cmake_parse_arguments(ARG "TESTS" "" "" ${ARGN})
+  if(NOT STAGEFIT_PCH)
+    return()
+  endif()
+  if(ARG_TESTS)
+    set(owner stagefit_test_pch)
+  else()
+    set(owner stagefit_pch)
+  endif()
+  if(NOT TARGET ${owner})
+    set(stub ${PROJECT_BINARY_DIR}/${owner}.cc)
+    if(NOT EXISTS ${stub})
+      file(WRITE ${stub} "// Compiles the shared precompiled header (cmake/StagefitHelpers.cmake).\n")
+    endif()
+    add_library(${owner} STATIC ${stub})
+    target_link_libraries(${owner} PRIVATE Eigen3::Eigen nlohmann_json::nlohmann_json)
+    set(headers ${STAGEFIT_PCH_HEADERS})
+    if(ARG_TESTS)
+      target_link_libraries(${owner} PRIVATE GTest::gtest)
+      list(APPEND headers <gtest/gtest.h>)
+      stagefit_test_definitions(${owner})
+    endif()
+    target_precompile_headers(${owner} PRIVATE ${headers})
+  endif()
+  target_precompile_headers(${target} REUSE_FROM ${owner})
+endfunction()
+
+# The definitions every test program is compiled with (the precompiled header's too, so it matches).
+function(stagefit_test_definitions target)
+  target_compile_definitions(${target} PRIVATE
+    STAGEFIT_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+    STAGEFIT_SHARED_DATA_DIR="${PROJECT_SOURCE_DIR}/../shared/data"
+    STAGEFIT_BINARY="$<TARGET_FILE:stagefit>")
+endfunction()
+
 # stagefit_library(NAME layer DEPS ...): one static library per layer folder, built from every .cc in
 # src/<layer>/, namespace stagefit::<layer>, headers in include/stagefit/<layer>/.
 function(stagefit_library)
@@ -7,6 +54,7 @@ function(stagefit_library)
   target_include_directories(stagefit_${ARG_NAME} PUBLIC ${PROJECT_SOURCE_DIR}/include)
   target_link_libraries(stagefit_${ARG_NAME} PUBLIC ${ARG_DEPS})
   add_library(stagefit::${ARG_NAME} ALIAS stagefit_${ARG_NAME})
+  stagefit_use_pch(stagefit_${ARG_NAME})
 endfunction()
 
 # stagefit_test(path/to/foo_test.cc DEPS ...): one test program per test file, registered with CTest.
@@ -15,10 +63,8 @@ function(stagefit_test source)
   get_filename_component(name ${source} NAME_WE)
   add_executable(${name} ${source})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
-  target_compile_definitions(${name} PRIVATE
-    STAGEFIT_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
-    STAGEFIT_SHARED_DATA_DIR="${PROJECT_SOURCE_DIR}/../shared/data"
-    STAGEFIT_BINARY="$<TARGET_FILE:stagefit>")
+  stagefit_test_definitions(${name})
+  stagefit_use_pch(${name} TESTS)
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS unit)
 endfunction()
 

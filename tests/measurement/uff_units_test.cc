@@ -226,7 +226,9 @@ TEST(UffFieldFiles, EveryVendorFileParsesOrIsReportedAsTruncated) {
     // microphone record has no force, which must be reported, not guessed.
     bool time = false;
     for (const auto& r : file.records) time = time || r.function_type == uff_function::kTimeResponse;
-    if (time) EXPECT_THROW(ConvertUffToRawHammer(file, name), InputError) << name;
+    if (time) {
+      EXPECT_THROW(ConvertUffToRawHammer(file, name), InputError) << name;
+    }
   }
   EXPECT_GE(parsed, 6);
 }

@@ -192,7 +192,7 @@ TEST(Effects, AJointOffsetIsTheCouplingsOfItsStiffnessCentre) {
   const EffectDefinition& offset = FindEffectDefinition("joint-offset");
   ASSERT_EQ(offset.mimicked_together_by, std::vector<std::string>{"coupled-stiffness"});
   for (const char* joint : {"rz", "hexapod"}) {
-    for (const Eigen::Vector3d r : {Eigen::Vector3d(0, 0, 0.05), Eigen::Vector3d(0.03, -0.04, 0.02)}) {
+    for (const Eigen::Vector3d& r : {Eigen::Vector3d(0, 0, 0.05), Eigen::Vector3d(0.03, -0.04, 0.02)}) {
       ModelSpec moved = nominal;
       ApplyEffect(moved, Effect{"joint-offset", joint, {{"dx", r.x()}, {"dy", r.y()}, {"dz", r.z()}}, {}});
       ModelSpec coupled = nominal;
