@@ -57,23 +57,32 @@ function(stagefit_library)
   stagefit_use_pch(stagefit_${ARG_NAME})
 endfunction()
 
-# stagefit_test(path/to/foo_test.cc DEPS ...): one test program per test file, registered with CTest.
+# stagefit_test(path/to/foo_test.cc [COST c] DEPS ...): one test program per test file, registered with
+# CTest. COST (CTest's property, default 0) orders a fresh build folder's first run, which has no
+# timings yet: higher first. The programs whose tests run diagnoses and loops (10-110 s each) set it,
+# so that a parallel run does not end with one of them alone.
 function(stagefit_test source)
-  cmake_parse_arguments(ARG "" "" "DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "COST" "DEPS" ${ARGN})
+  if(NOT DEFINED ARG_COST)
+    set(ARG_COST 0)
+  endif()
   get_filename_component(name ${source} NAME_WE)
   add_executable(${name} ${source})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   stagefit_test_definitions(${name})
   stagefit_use_pch(${name} TESTS)
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS unit)
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS unit COST ${ARG_COST})
 endfunction()
 
-# stagefit_layer_tests(layer [DEPS ...]): every tests/<layer>/*_test.cc becomes a test program linked with
-# stagefit::<layer> (and DEPS).
+# stagefit_layer_tests(layer [COST c] [DEPS ...]): every tests/<layer>/*_test.cc becomes a test program
+# linked with stagefit::<layer> (and DEPS).
 function(stagefit_layer_tests layer)
-  cmake_parse_arguments(ARG "" "" "DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "COST" "DEPS" ${ARGN})
+  if(NOT DEFINED ARG_COST)
+    set(ARG_COST 0)
+  endif()
   file(GLOB tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
   foreach(t ${tests})
-    stagefit_test(${t} DEPS stagefit::${layer} ${ARG_DEPS})
+    stagefit_test(${t} COST ${ARG_COST} DEPS stagefit::${layer} ${ARG_DEPS})
   endforeach()
 endfunction()
