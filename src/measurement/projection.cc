@@ -523,6 +523,11 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
       e.estimated_W = e.declared_W;
       e.residual_share = 1.0;
       e.estimable = observable && !used.empty() && SolveDirection(M, b, h2, &e.estimated_W, &e.residual_share);
+      if (e.estimable) {
+        // The share the declared direction leaves (its best scale fitted): min_c sum |h - c d' a|^2.
+        const double dMd = e.declared_W.dot(M * e.declared_W), db = e.declared_W.dot(b);
+        e.declared_residual_share = dMd > 0.0 ? std::max(0.0, 1.0 - db * db / (dMd * h2)) : 1.0;
+      }
       e.angle_rad = std::atan2(e.declared_W.cross(e.estimated_W).norm(), e.declared_W.dot(e.estimated_W));
       estimates.push_back(e);
     }
@@ -535,16 +540,9 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
 std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
                                                           double min_angle_rad, double fmin_hz, double fmax_hz) {
   const std::vector<ChannelDirectionEstimate> estimates = EstimateChannelDirections(raw, default_p_WXo, fmin_hz, fmax_hz);
-  std::optional<ChannelDirectionEstimate> best;
-  double best_others = std::numeric_limits<double>::infinity();
-  // Whether `e`, whose correction leaves the others at most `others` off, is more likely than `best`.
-  auto better = [&](const ChannelDirectionEstimate& e, double others) {
-    if (!best) return true;
-    const bool consistent = others <= min_angle_rad, best_consistent = best_others <= min_angle_rad;
-    if (consistent != best_consistent) return consistent;
-    if (consistent || others == best_others) return e.residual_share < best->residual_share;
-    return others < best_others;
-  };
+  std::optional<ChannelDirectionEstimate> best;    // of the corrections that leave the others consistent
+  std::optional<ChannelDirectionEstimate> strong;  // else: of the channels the data put clearly off
+  double best_strong_others = std::numeric_limits<double>::infinity();
   for (const auto& e : estimates) {
     if (!e.estimable || !(e.angle_rad > min_angle_rad)) continue;
     // The channel's declared direction replaced by its estimate, the others estimated again.
@@ -557,12 +555,14 @@ std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, co
     for (const auto& o : EstimateChannelDirections(corrected, default_p_WXo, fmin_hz, fmax_hz)) {
       if (o.estimable && !(o.name == e.name && o.is_impact == e.is_impact)) others = std::max(others, o.angle_rad);
     }
-    if (better(e, others)) {
-      best = e;
-      best_others = others;
+    if (others <= min_angle_rad) {
+      if (!best || e.residual_share < best->residual_share) best = e;
+    } else if (e.declared_residual_share >= 2 * e.residual_share && others < best_strong_others) {
+      strong = e;
+      best_strong_others = others;
     }
   }
-  return best;
+  return best ? best : strong;
 }
 
 }  // namespace stagefit::measurement
