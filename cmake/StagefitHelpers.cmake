@@ -75,12 +75,9 @@ function(stagefit_test source)
 endfunction()
 
 # stagefit_layer_tests(layer [COST c] [DEPS ...]): every tests/<layer>/*_test.cc becomes a test program
-# linked with stagefit::<layer> (and DEPS).
+# linked with stagefit::<layer> (and DEPS); COST as stagefit_test's (its default when not given).
 function(stagefit_layer_tests layer)
   cmake_parse_arguments(ARG "" "COST" "DEPS" ${ARGN})
-  if(NOT DEFINED ARG_COST)
-    set(ARG_COST 0)
-  endif()
   file(GLOB tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
   foreach(t ${tests})
     stagefit_test(${t} COST ${ARG_COST} DEPS stagefit::${layer} ${ARG_DEPS})

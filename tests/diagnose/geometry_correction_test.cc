@@ -286,7 +286,7 @@ TEST(FindTurnedChannel, PicksTheChannelWhoseCorrectionLeavesTheOthersConsistent)
 // (150 Hz bands, seeds of eval_loop's generator outside its evaluation sets): 100008 (a Dy-Rx coupling
 // alone) h1 18.9 degrees, 100085 (three effects, no turned channel) h5 19.3 degrees. Freeing their
 // direction lowers their residual by 4 %, and corrected, each leaves another channel more than 10 degrees
-// off: the data single out no turned channel, and none is named (the loop had corrected them; a declared
+// off: the data single out no turned channel, and none is named (the rule before named them; a declared
 // direction leaving twice its estimate's residual would still be).
 TEST(FindTurnedChannel, NamesNoChannelWhenNoCorrectionLeavesTheOthersConsistent) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
