@@ -105,38 +105,59 @@ if [ "$mode" = replay ]; then
   exit $status
 fi
 
-status=0
-printf '%-22s %8s %12s %8s  %s\n' target seconds executions exec/s result
-for t in "${targets[@]}"; do
-  work="$build_dir/corpus/$t"
-  artifacts="$build_dir/artifacts/$t/"
-  log="$build_dir/logs/$t.log"
+# One target: fuzzes it and writes its row of the table to $build_dir/logs/<target>.row; its status
+# is the target's.
+fuzz_target() {
+  local t="$1"
+  local work="$build_dir/corpus/$t" artifacts="$build_dir/artifacts/$t/" log="$build_dir/logs/$t.log"
   [ "$keep_corpus" = 1 ] || rm -rf "$work"
   mkdir -p "$work" "$artifacts" "$(dirname "$log")"
   # Seeds, and the inputs that once crashed (they must keep passing under the sanitizers).
   for d in tests/fuzz/corpus/$t tests/fuzz/regressions/$t; do
     [ -d "$d" ] && cp -n "$d"/* "$work/" 2>/dev/null || true
   done
-  options=(-max_len="${max_len[$t]}" -timeout=10 -rss_limit_mb=2048
-           -print_final_stats=1 -close_fd_mask=3 -artifact_prefix="$artifacts")
+  local options=(-max_len="${max_len[$t]}" -timeout=10 -rss_limit_mb=2048
+                 -print_final_stats=1 -close_fd_mask=3 -artifact_prefix="$artifacts")
   if [ "$runs" -gt 0 ]; then
     options+=(-runs="$runs" -seed="$seed")
   else
     options+=(-max_total_time="$seconds")
   fi
   [ "$jobs" -gt 1 ] && options+=(-fork="$jobs" -ignore_crashes=0)
-  result=ok
+  local result=ok started elapsed executions rate
   started=$(date +%s)
   "$bin/$t" "${options[@]}" "$work" >"$log" 2>&1 || result=FAILED
   elapsed=$(( $(date +%s) - started ))
   executions=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -n 1 | grep -o '[0-9]*$' || true)
   [ -n "$executions" ] || executions=$(grep -o '#[0-9]*' "$log" | tail -n 1 | tr -d '#' || true)
   rate=$(( ${executions:-0} / (elapsed > 0 ? elapsed : 1) ))
-  printf '%-22s %8s %12s %8s  %s\n' "$t" "$elapsed" "${executions:-?}" "$rate" "$result"
-  if [ "$result" != ok ]; then
-    status=1
-    echo "---- $t: $log (crashing input in $artifacts)" >&2
-    grep -v '^#\|^INFO\|^MS:\|^NEW\|^REDUCE\|^pulse' "$log" | tail -n 60 >&2
-  fi
+  printf '%-22s %8s %12s %8s  %s\n' "$t" "$elapsed" "${executions:-?}" "$rate" "$result" >"$build_dir/logs/$t.row"
+  [ "$result" = ok ]
+}
+
+# The targets run side by side, as many at a time as the machine has cores divided by --jobs (each
+# is one process, or --jobs of them): the same work per target, in a fraction of the time.
+parallel=$(( $(nproc) / jobs ))
+[ "$parallel" -ge 1 ] || parallel=1
+mkdir -p "$build_dir/logs"
+declare -A pid_of=()
+for t in "${targets[@]}"; do
+  rm -f "$build_dir/logs/$t.row"
+  while [ "$(jobs -rp | wc -l)" -ge "$parallel" ]; do wait -n || true; done
+  fuzz_target "$t" &
+  pid_of[$t]=$!
+done
+status=0
+failed=()
+for t in "${targets[@]}"; do
+  wait "${pid_of[$t]}" || { status=1; failed+=("$t"); }
+done
+printf '%-22s %8s %12s %8s  %s\n' target seconds executions exec/s result
+for t in "${targets[@]}"; do
+  cat "$build_dir/logs/$t.row" 2>/dev/null || printf '%-22s %8s %12s %8s  %s\n' "$t" ? ? ? FAILED
+done
+for t in "${failed[@]}"; do
+  echo "---- $t: $build_dir/logs/$t.log (crashing input in $build_dir/artifacts/$t/)" >&2
+  grep -v '^#\|^INFO\|^MS:\|^NEW\|^REDUCE\|^pulse' "$build_dir/logs/$t.log" | tail -n 60 >&2
 done
 exit $status
