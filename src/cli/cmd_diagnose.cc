@@ -113,7 +113,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
                                {"effect_found", summary.effect_found},
                                {"verdict", summary.verdict},
                                {"candidates", candidates},
-                               {"where", {{"bands", bands}, {"elements", elements}, {"mispaired_modes", modes},
+                               {"where", {{"bands", bands}, {"elements", elements}, {"channels", ChannelErrorsJson(summary.worst_channels)}, {"mispaired_modes", modes},
                                           {"unpaired_measured_hz", summary.unpaired_measured_hz},
                                           {"unpaired_model", unpaired_model}, {"rigid_consistency", rigid}}},
                                {"time_s", summary.time_s}};

@@ -122,6 +122,7 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"confirmed", summary.confirmed},
                                {"implausible_effects", summary.implausible_effects},
                                {"conclusion", summary.conclusion},
+                               {"channels", ChannelErrorsJson(summary.final_channels)},
                                {"channel_faults", channel_faults},
                                {"last_verdict", summary.last_verdict},
                                {"final_model", o->out},

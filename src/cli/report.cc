@@ -3,6 +3,7 @@
 #include "stagefit/measurement/measurement_file.h"
 #include "stagefit/measurement/channel_checks.h"
 
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -96,6 +97,18 @@ nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor) {
   return {{"floor", floor.floor},
           {"sd", floor.sd},
           {"error_over_floor", floor.floor > 0.0 ? nlohmann::json(error / floor.floor) : nlohmann::json(nullptr)}};
+}
+
+nlohmann::json ChannelErrorsJson(const std::vector<diagnose::ChannelError>& channels) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& c : channels) {
+    out.push_back({{"channel", c.name},
+                   {"kind", c.is_input ? "input" : "output"},
+                   {"error", c.error},
+                   {"times_floor", std::isfinite(c.times_floor) ? nlohmann::json(c.times_floor) : nlohmann::json(nullptr)},
+                   {"times_median", c.times_median}});
+  }
+  return out;
 }
 
 void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs) {

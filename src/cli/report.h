@@ -8,6 +8,7 @@
 
 #include "command.h"
 #include "stagefit/compare/residuals.h"
+#include "stagefit/diagnose/diagnose.h"
 #include "stagefit/model/model_spec.h"
 
 namespace stagefit::cli {
@@ -50,6 +51,10 @@ compare::ComparisonSpace ResolveComparisonSpace(const std::string& value, const 
 /// {"floor", "sd", "error_over_floor"} of compare::Comparison::CalcNoiseFloor() for `error`; null when
 /// the measurement has no coherence (the floor is unknown).
 nlohmann::json NoiseFloorJson(double error, const compare::NoiseFloor& floor);
+
+/// The raw channels' errors (diagnose::WorstChannels) as the reports' "channels" array: channel, kind
+/// ("output" or "input"), error, times_floor (null without a floor), times_median.
+nlohmann::json ChannelErrorsJson(const std::vector<diagnose::ChannelError>& channels);
 
 /// Writes `report` as indented JSON, atomically, refusing to overwrite any of `inputs`.
 void WriteReport(const std::string& path, const nlohmann::json& report, const std::vector<std::string>& inputs);

@@ -215,6 +215,67 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
   return text;
 }
 
+std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                                        const compare::ComparisonOptions& options, size_t max_channels) {
+  if (measurement.outputs.empty() || measurement.inputs.empty()) return {};
+  compare::ComparisonOptions raw = options;
+  raw.space = compare::ComparisonSpace::kRaw;
+  std::optional<compare::Comparison> comparison;
+  compare::ComparisonResult result;
+  try {
+    comparison.emplace(compare::Comparison::Create(spec, measurement, raw));
+    result = comparison->Evaluate(spec);
+  } catch (const std::exception&) {
+    return {};  // a measurement given already projected, or one the raw space cannot take (header)
+  }
+  // The median of the channel's elements' errors, not the error over all its points: a part missing
+  // at one sensor raises every element of its row and one element of each impact's column; over all
+  // points that one element put every impact at 19x the floor beside the sensor's 47x
+  // (WorstChannels.ALocalResonanceUnderOneSensorPutsItFirst), the median leaves them at the floor.
+  std::vector<std::vector<double>> out(static_cast<size_t>(comparison->num_outputs())), in(static_cast<size_t>(comparison->num_inputs()));
+  for (const auto& e : result.elements) {
+    out[static_cast<size_t>(e.index.output)].push_back(e.error);
+    in[static_cast<size_t>(e.index.input)].push_back(e.error);
+  }
+  const compare::NoiseFloor floor = comparison->CalcNoiseFloor();
+  std::vector<ChannelError> channels;
+  auto add = [&](std::vector<std::vector<double>>& errors, const std::vector<std::string>& names, bool is_input) {
+    for (size_t c = 0; c < errors.size(); ++c) {
+      std::vector<double>& e = errors[c];
+      if (e.empty()) continue;
+      std::sort(e.begin(), e.end());
+      const size_t n = e.size();
+      ChannelError ce;
+      ce.name = names[c];
+      ce.is_input = is_input;
+      ce.num_elements = static_cast<int>(n);
+      ce.error = n % 2 ? e[n / 2] : 0.5 * (e[n / 2 - 1] + e[n / 2]);
+      if (floor.known && floor.floor > 0) ce.times_floor = ce.error / floor.floor;
+      channels.push_back(ce);
+    }
+  };
+  add(out, comparison->output_names(), false);
+  add(in, comparison->input_names(), true);
+  std::stable_sort(channels.begin(), channels.end(), [](const ChannelError& a, const ChannelError& b) { return a.error > b.error; });
+  if (!channels.empty()) {
+    const size_t n = channels.size();  // sorted descending
+    const double median = n % 2 ? channels[n / 2].error : 0.5 * (channels[n / 2 - 1].error + channels[n / 2].error);
+    for (auto& c : channels) c.times_median = median > 0 ? c.error / median : 0.0;
+  }
+  if (channels.size() > max_channels) channels.resize(max_channels);
+  return channels;
+}
+
+std::string ChannelWords(const std::vector<ChannelError>& channels) {
+  std::string text;
+  for (size_t k = 0; k < channels.size() && k < 2 && channels[k].times_median >= kChannelStandsOut; ++k) {
+    const ChannelError& c = channels[k];
+    text += (k ? ", " : "") + c.name +
+            (std::isfinite(c.times_floor) ? Format(k ? " (%.1f x)" : " (%.1f x the floor)", c.times_floor) : Format(" (error %.4f)", c.error));
+  }
+  return text;
+}
+
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
@@ -917,6 +978,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // 4. Where.
   compare::ComparisonResult result = comparison.Evaluate(summary.baseline);
   SortWorst(result, 5, 8, &summary.worst_bands, &summary.worst_elements);
+  summary.worst_channels = WorstChannels(summary.baseline, measurement, options.comparison, 6);
   std::optional<compare::ModePairing> pairing;
   try {
     pairing = compare::PairModes(comparison, result.model, summary.baseline);
@@ -950,7 +1012,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   auto times_floor = [&](double error) { return floor_known ? error / floor.floor : std::numeric_limits<double>::quiet_NaN(); };
   // Where the remaining error sits, in words: the worst bands and elements (and channels that do not
   // move rigidly with the others).
-  auto where_words = [&] { return WhereWords(summary.worst_bands, summary.worst_elements); };
+  auto where_words = [&] {
+    const std::string channels = ChannelWords(summary.worst_channels);
+    return WhereWords(summary.worst_bands, summary.worst_elements) + (channels.empty() ? "" : "; channels " + channels);
+  };
   std::ostringstream verdict;
   if (summary.effect_found) {
     const Candidate& best = summary.candidates[0];
@@ -1141,6 +1206,14 @@ std::string DiagnoseSummary::BriefReport(int max_candidates) const {
   }
   for (const auto& e : worst_elements) {
     out << "  element " << e.name << Format(": error %.4f, %.0f %% of the total\n", e.error, 100 * e.share);
+  }
+  if (!worst_channels.empty()) {
+    out << Format("  raw channels (median error of their elements; the worst at %.2f x the median channel's):", worst_channels[0].times_median);
+    for (const auto& c : worst_channels) {
+      out << " " << c.name << (std::isfinite(c.times_floor) ? Format(" %.2f x the floor", c.times_floor) : Format(" %.4f", c.error))
+          << (&c == &worst_channels.back() ? "" : ",");
+    }
+    out << "\n";
   }
   for (const auto& m : mispaired_modes) {
     out << Format("  measured mode at %.1f Hz is at %.1f Hz in the model (MAC %.2f)", m.measured_hz, m.model_hz, m.mac)

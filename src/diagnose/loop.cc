@@ -162,8 +162,21 @@ std::string EffectsText(const std::vector<model::Effect>& effects) {
   return text;
 }
 
-/// LoopSummary::conclusion of `summary` (its history, floor and effects set), `final` evaluated by
-/// `comparison` for where the remaining error sits.
+/// What the raw channels of `summary` (LoopSummary::final_channels) add to a conclusion at the floor:
+/// the channels that stand out above kChannelStandsOut times the floor too, or nothing.
+std::string RawChannelsAtTheFloor(const LoopSummary& summary) {
+  const auto& channels = summary.final_channels;
+  if (channels.empty() || !(channels[0].times_floor >= kChannelStandsOut)) return "";
+  const std::string named = ChannelWords(channels);
+  if (named.empty()) return "";
+  return " But in raw space not every channel is at the floor: " + named + " stand" +
+         (named.find("), ") == std::string::npos ? "s" : "") +
+         " out, which the compliance space cannot see (a local mode of the plate under the sensors, a resonant mount, a "
+         "miswired channel): check them before trusting what they measure.";
+}
+
+/// LoopSummary::conclusion of `summary` (its history, floor, effects set and raw channels), `final`
+/// evaluated by `comparison` for where the remaining error sits.
 std::string Conclusion(const LoopSummary& summary, const compare::Comparison& comparison, const model::ModelSpec& final) {
   const double error = summary.history.back().error;
   std::string effects;
@@ -187,8 +200,10 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
   }
   if (summary.confirmed) {
     std::snprintf(line, sizeof line, "The model ends at the noise floor (%.2f x %.4f)", times, summary.noise_floor.floor);
-    return std::string(line) + (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
-                                                : " with " + effects + ": they explain the measurement.");
+    return std::string(line) +
+           (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
+                            : " with " + effects + ": they explain the measurement.") +
+           RawChannelsAtTheFloor(summary);
   }
   std::vector<compare::BandError> bands;
   std::vector<compare::ElementError> elements;
@@ -198,7 +213,8 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
                 times, summary.noise_floor.floor, summary.stop_reason.c_str(),
                 round_limit ? "Something is still missing (more rounds, --max-rounds, may find it in the catalogue)"
                             : "Something outside the catalogue is still missing");
-  std::string text = line + WhereWords(bands, elements) + ".";
+  const std::string channels = ChannelWords(summary.final_channels);
+  std::string text = line + WhereWords(bands, elements) + (channels.empty() ? "" : "; channels " + channels) + ".";
   if (!effects.empty()) {
     text += " The effects added on the way (" + effects +
             ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed.";
@@ -649,6 +665,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   }
   // false when the floor is unknown (NaN)
   summary.confirmed = at_floor(summary.history.back().error) && summary.implausible_effects.empty();
+  summary.final_channels = WorstChannels(current, measurement, options.diagnose.comparison, 6);
   summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;

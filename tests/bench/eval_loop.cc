@@ -13,7 +13,8 @@
 // worst bands it names holds the frequency where the hidden part changes the data most (or, counted
 // apart, the worst element's own worst band, named with it when it holds a third of its error), and
 // one of the three worst elements it names (or its least rigid channel) is on a channel the hidden
-// part changes most.
+// part changes most, and (counted apart) one of the raw channels it names as standing out
+// (diagnose::WorstChannels, ChannelWords).
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
@@ -60,8 +61,14 @@ struct Outcome {
   bool extra = false;        // an effect added that is not hidden
   bool at_floor = false;     // final error <= 1.2 x the floor
   bool near_truth = false;   // distance to the noise-free truth <= 0.01
+  bool raw_alarm = false;    // the conclusion at the floor says a raw channel stands out (none does here)
   double time_s = 0;
 };
+
+// The conclusion at the floor names raw channels that stand out (diagnose::LoopSummary::final_channels).
+bool RawChannelAlarm(const diagnose::LoopSummary& summary) {
+  return summary.conclusion.find("But in raw space not every channel is at the floor") != std::string::npos;
+}
 
 synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
   std::mt19937_64 rng(seed ^ 0x5eedULL);
@@ -121,13 +128,15 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
   const double floor = summary.noise_floor.floor;
   o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
   o.near_truth = distance <= 0.01;
+  o.raw_alarm = RawChannelAlarm(summary);
   o.time_s = summary.time_s;
-  std::printf("seed %7llu  %4.0f Hz %4d pts  %-40s -> %-40s  error %.4f = %.2fx floor %.4f  |to truth| %.4f  %s%s%s%s %.1f s\n",
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-40s -> %-40s  error %.4f = %.2fx floor %.4f  |to truth| %.4f  %s%s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies,
               truth_text.empty() ? "(none)" : truth_text.c_str(), added_text.empty() ? "(none)" : added_text.c_str(),
               summary.history.back().error, summary.history.back().error / floor, floor, distance,
               o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "",
-              summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", summary.time_s);
+              summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", o.raw_alarm ? "RAW-CHANNEL-ALARM " : "",
+              summary.time_s);
   if (verbose) {
     for (const auto& e : hidden.effects) std::printf("    hidden: %s (visibility %.1f)\n", e.description.c_str(), e.visibility);
     std::printf("%s", summary.HistoryTable().c_str());
@@ -155,6 +164,7 @@ struct OutsideOutcome {
   bool band = false;     // a worst band named holds the peak of the change
   bool element_band = false;  // the worst element's own worst band, named with it, holds it
   bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
+  bool raw_channel = false;  // one of the raw channels the conclusion names as standing out is
   double time_s = 0;
 };
 
@@ -198,6 +208,19 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
     where += (where.empty() ? "" : " ") + name;
   }
   if (!last.inconsistent_channels.empty()) o.channel = o.channel || changed(last.inconsistent_channels[0].channel);
+  // The raw channels the loop's conclusion names: the first two of the final model's that stand out
+  // (diagnose::ChannelWords), at the floor only when they are above kChannelStandsOut x the floor too.
+  const double floor = summary.noise_floor.floor;
+  o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
+  const bool raw_named = !summary.final_channels.empty() && (!o.at_floor || RawChannelAlarm(summary));
+  for (size_t k = 0; raw_named && k < summary.final_channels.size() && k < 2; ++k) {
+    const diagnose::ChannelError& c = summary.final_channels[k];
+    if (c.times_median < diagnose::kChannelStandsOut) break;
+    o.raw_channel = o.raw_channel || changed(c.name);
+    char named[80];
+    std::snprintf(named, sizeof named, " %s(%.1fx floor, %.1fx median)", c.name.c_str(), c.times_floor, c.times_median);
+    where += named;
+  }
   for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
     char band[64];
     std::snprintf(band, sizeof band, " %.0f-%.0f Hz", last.worst_bands[k].band.low_hz, last.worst_bands[k].band.high_hz);
@@ -206,13 +229,11 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   std::string added;
   for (const auto& w : summary.effects_added) added += (added.empty() ? "" : " + ") + w.substr(0, w.find(':'));
   o.time_s = summary.time_s;
-  const double floor = summary.noise_floor.floor;
-  o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
-  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s %.1f s\n",
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
               hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), added.empty() ? "(nothing added)" : added.c_str(),
               summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : o.element_band ? "element-band " : "",
-              o.channel ? "channel " : "", summary.time_s);
+              o.channel ? "channel " : "", o.raw_channel ? "raw-channel " : "", summary.time_s);
   if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
   std::fflush(stdout);
   return o;
@@ -268,7 +289,7 @@ int main(int argc, char** argv) {
     // explained: at the floor, within 0.01 of the noise-free truth and no effect added that is not
     // hidden, whether or not every hidden one was named (an unnamed one then changes the data by less
     // than the noise lets the loop tell).
-    int n = 0, named = 0, clean = 0, floor = 0, truth = 0, done = 0, explained = 0, named_explained = 0;
+    int n = 0, named = 0, clean = 0, floor = 0, truth = 0, done = 0, explained = 0, named_explained = 0, raw_alarms = 0;
     double time = 0, max_time = 0;
   };
   auto run = [&](int count, int num_effects, uint64_t seed0, Tally* t) {
@@ -282,6 +303,7 @@ int main(int argc, char** argv) {
       t->done += o.named_all && !o.extra && o.at_floor;
       t->explained += !o.extra && o.at_floor && o.near_truth;
       t->named_explained += o.named_all && !o.extra && o.at_floor && o.near_truth;
+      t->raw_alarms += o.raw_alarm;
       t->time += o.time_s;
       t->max_time = std::max(t->max_time, o.time_s);
     }
@@ -291,7 +313,7 @@ int main(int argc, char** argv) {
   run(two_effects, 2, first_seed + cases, &two);
   run(effect_free, 0, first_seed + cases + two_effects, &none);
   run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
-  int outside_clean = 0, outside_added = 0, outside_band = 0, outside_element_band = 0, outside_channel = 0, outside_floor = 0;
+  int outside_clean = 0, outside_added = 0, outside_band = 0, outside_element_band = 0, outside_channel = 0, outside_raw_channel = 0, outside_floor_raw_channel = 0, outside_floor = 0;
   double outside_time = 0;
   for (int c = 0; c < outside; ++c) {
     const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c,
@@ -302,6 +324,8 @@ int main(int argc, char** argv) {
     outside_band += !o.at_floor && o.band;
     outside_element_band += !o.at_floor && o.element_band;
     outside_channel += !o.at_floor && o.channel;
+    outside_raw_channel += !o.at_floor && o.raw_channel;
+    outside_floor_raw_channel += o.at_floor && o.raw_channel;
     outside_time += o.time_s;
   }
   auto pct = [](int a, int n) { return n > 0 ? 100.0 * a / n : 0.0; };
@@ -330,12 +354,16 @@ int main(int argc, char** argv) {
     std::printf("effect-free (%d): nothing added %d (%.0f %%), final within 1.2x the floor %d; mean %.1f s\n", none.n,
                 none.clean, pct(none.clean, none.n), none.floor, none.time / none.n);
   }
+  if (one.n + two.n + three.n + none.n) {
+    std::printf("raw channels named as standing out at the floor on the catalogue and effect-free cases: %d of %d\n",
+                one.raw_alarms + two.raw_alarms + three.raw_alarms + none.raw_alarms, one.n + two.n + three.n + none.n);
+  }
   if (outside) {
     std::printf("outside the catalogue (%d): no effect claimed %d (%.0f %%; added but not confirmed %d); ended at the floor %d "
                 "(nothing to localise); of the %d above it, worst band named %d, worst element's own band named %d, worst channel "
-                "named %d; mean %.1f s\n",
+                "named %d (by the raw channels that stand out %d); of those at the floor, a changed raw channel named %d; mean %.1f s\n",
                 outside, outside_clean, pct(outside_clean, outside), outside_added, outside_floor, outside - outside_floor, outside_band,
-                outside_element_band, outside_channel, outside_time / outside);
+                outside_element_band, outside_channel, outside_raw_channel, outside_floor_raw_channel, outside_time / outside);
   }
   return 0;
 }

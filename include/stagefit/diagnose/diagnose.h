@@ -167,6 +167,39 @@ void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t
 /// verdicts and the loop's conclusion say it so.
 std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements);
 
+/// The error of a model on one raw channel of a measurement (an accelerometer or an impact): the median
+/// over the channel's used elements in raw space (its row or column of the FRF matrix) of their errors
+/// (compare::ElementError::error, sqrt(sum w^2 |e|^2 / sum w^2) over the element's points). A part the
+/// model misses at one sensor raises its whole row and one element of each impact's column: the median
+/// names the sensor alone. In compliance space every element mixes all channels (J_a and J_F), so such
+/// a part is spread over the elements there; the raw channels show where it enters.
+struct ChannelError {
+  std::string name;        ///< "a1y", "h3"
+  bool is_input = false;   ///< an impact (an input of the raw FRF matrix)
+  int num_elements = 0;    ///< used elements on the channel
+  double error = 0;
+  /// error / the raw comparison's noise floor (NaN when the measurement has no coherence).
+  double times_floor = std::numeric_limits<double>::quiet_NaN();
+  /// error / the median of every channel's error: a model error that the whole stack shares (a missing
+  /// payload) puts every channel near 1, a part missing at one sensor puts that sensor far above.
+  double times_median = 0;
+};
+
+/// A channel stands out, and the verdicts name it, at this many times the median channel's error.
+inline constexpr double kChannelStandsOut = 1.5;
+
+/// The raw channels of `measurement`, worst first by ChannelError::error, of the model `spec`, compared
+/// in raw space on the band and with the weights of `options` (its space is ignored), at most
+/// `max_channels`. Empty when the measurement has no raw channels (given already projected) or the
+/// raw comparison cannot be made (a channel on a body the model lacks, no significant element).
+std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const measurement::FrfData& measurement,
+                                        const compare::ComparisonOptions& options, size_t max_channels);
+
+/// The channels of WorstChannels() that stand out (kChannelStandsOut) in words, for a verdict: the
+/// first two of them, "a1y (3.1 x the floor), h3 (2.0 x)" (the errors when there is no floor); empty
+/// when none stands out.
+std::string ChannelWords(const std::vector<ChannelError>& channels);
+
 /// The verdict's thresholds against the noise floor (compare::Comparison::CalcNoiseFloor()): at most
 /// this many times the floor is done; above the second, with no candidate that helps or with the best
 /// one still above it, something outside the catalogue is missing.
@@ -197,6 +230,9 @@ struct DiagnoseSummary {
   // Where.
   std::vector<compare::BandError> worst_bands;
   std::vector<compare::ElementError> worst_elements;
+  /// The baseline's error on the raw channels, worst first (WorstChannels(), at most 6); empty for a
+  /// measurement given already projected.
+  std::vector<ChannelError> worst_channels;
   std::vector<ModeMismatch> mispaired_modes;
   std::vector<double> unpaired_measured_hz;
   std::vector<std::pair<double, std::string>> unpaired_model;  ///< frequency, dominant DoF

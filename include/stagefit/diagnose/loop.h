@@ -97,6 +97,11 @@ struct LoopSummary {
   /// In words: which effects explain the measurement, or that nothing is confirmed and where (bands,
   /// elements) the final model's remaining error sits.
   std::string conclusion;
+  /// The final model's error on the raw channels, worst first (WorstChannels(), at most 6): the
+  /// conclusion names those that stand out, at the floor too, where the compliance space may not see a
+  /// part that one sensor or a few carry (a local mode of the plate, a resonant mount). Empty for a
+  /// measurement given already projected.
+  std::vector<ChannelError> final_channels;
   /// The last diagnosis whole (its "where": worst bands, elements, inconsistent channels); empty
   /// (no candidates, no bands) when the first fit already ended at the noise floor.
   DiagnoseSummary last_diagnosis;
