@@ -215,6 +215,18 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
   return text;
 }
 
+namespace {
+
+/// The median of `values` (sorted in place); 0 for none.
+double Median(std::vector<double>* values) {
+  if (values->empty()) return 0.0;
+  std::sort(values->begin(), values->end());
+  const size_t n = values->size();
+  return n % 2 ? (*values)[n / 2] : 0.5 * ((*values)[n / 2 - 1] + (*values)[n / 2]);
+}
+
+}  // namespace
+
 std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const measurement::FrfData& measurement,
                                         const compare::ComparisonOptions& options, size_t max_channels) {
   if (measurement.outputs.empty() || measurement.inputs.empty()) return {};
@@ -241,15 +253,12 @@ std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const meas
   std::vector<ChannelError> channels;
   auto add = [&](std::vector<std::vector<double>>& errors, const std::vector<std::string>& names, bool is_input) {
     for (size_t c = 0; c < errors.size(); ++c) {
-      std::vector<double>& e = errors[c];
-      if (e.empty()) continue;
-      std::sort(e.begin(), e.end());
-      const size_t n = e.size();
+      if (errors[c].empty()) continue;
       ChannelError ce;
       ce.name = names[c];
       ce.is_input = is_input;
-      ce.num_elements = static_cast<int>(n);
-      ce.error = n % 2 ? e[n / 2] : 0.5 * (e[n / 2 - 1] + e[n / 2]);
+      ce.num_elements = static_cast<int>(errors[c].size());
+      ce.error = Median(&errors[c]);
       if (floor.known && floor.floor > 0) ce.times_floor = ce.error / floor.floor;
       channels.push_back(ce);
     }
@@ -257,11 +266,10 @@ std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const meas
   add(out, comparison->output_names(), false);
   add(in, comparison->input_names(), true);
   std::stable_sort(channels.begin(), channels.end(), [](const ChannelError& a, const ChannelError& b) { return a.error > b.error; });
-  if (!channels.empty()) {
-    const size_t n = channels.size();  // sorted descending
-    const double median = n % 2 ? channels[n / 2].error : 0.5 * (channels[n / 2 - 1].error + channels[n / 2].error);
-    for (auto& c : channels) c.times_median = median > 0 ? c.error / median : 0.0;
-  }
+  std::vector<double> errors;
+  for (const auto& c : channels) errors.push_back(c.error);
+  const double median = Median(&errors);
+  for (auto& c : channels) c.times_median = median > 0 ? c.error / median : 0.0;
   if (channels.size() > max_channels) channels.resize(max_channels);
   return channels;
 }
