@@ -194,7 +194,8 @@ void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t
   if (elements->size() > max_elements) elements->resize(max_elements);
 }
 
-std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements) {
+std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements,
+                       const std::vector<ChannelError>& channels) {
   std::string text;
   for (size_t k = 0; k < bands.size() && k < 2; ++k) {
     text += (text.empty() ? "" : ", ") + Format("%.0f-%.0f Hz", bands[k].band.low_hz, bands[k].band.high_hz) +
@@ -212,6 +213,8 @@ std::string WhereWords(const std::vector<compare::BandError>& bands, const std::
     named += ")";
   }
   if (!named.empty()) text += (text.empty() ? "" : "; elements ") + named;
+  const std::string channel_words = ChannelWords(channels);
+  if (!channel_words.empty()) text += "; channels " + channel_words;
   return text;
 }
 
@@ -274,12 +277,18 @@ std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const meas
   return channels;
 }
 
+std::vector<ChannelError> StandingOut(const std::vector<ChannelError>& channels) {
+  std::vector<ChannelError> out;
+  for (size_t k = 0; k < channels.size() && k < 2 && channels[k].times_median >= kChannelStandsOut; ++k) out.push_back(channels[k]);
+  return out;
+}
+
 std::string ChannelWords(const std::vector<ChannelError>& channels) {
   std::string text;
-  for (size_t k = 0; k < channels.size() && k < 2 && channels[k].times_median >= kChannelStandsOut; ++k) {
-    const ChannelError& c = channels[k];
-    text += (k ? ", " : "") + c.name +
-            (std::isfinite(c.times_floor) ? Format(k ? " (%.1f x)" : " (%.1f x the floor)", c.times_floor) : Format(" (error %.4f)", c.error));
+  for (const ChannelError& c : StandingOut(channels)) {
+    const bool first = text.empty();
+    text += (first ? "" : ", ") + c.name +
+            (std::isfinite(c.times_floor) ? Format(first ? " (%.1f x the floor)" : " (%.1f x)", c.times_floor) : Format(" (error %.4f)", c.error));
   }
   return text;
 }
@@ -1018,12 +1027,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   const compare::NoiseFloor& floor = summary.noise_floor;
   const bool floor_known = floor.known && floor.floor > 0.0;
   auto times_floor = [&](double error) { return floor_known ? error / floor.floor : std::numeric_limits<double>::quiet_NaN(); };
-  // Where the remaining error sits, in words: the worst bands and elements (and channels that do not
-  // move rigidly with the others).
-  auto where_words = [&] {
-    const std::string channels = ChannelWords(summary.worst_channels);
-    return WhereWords(summary.worst_bands, summary.worst_elements) + (channels.empty() ? "" : "; channels " + channels);
-  };
+  // Where the remaining error sits, in words: the worst bands and elements, and the raw channels that
+  // stand out.
+  auto where_words = [&] { return WhereWords(summary.worst_bands, summary.worst_elements, summary.worst_channels); };
   std::ostringstream verdict;
   if (summary.effect_found) {
     const Candidate& best = summary.candidates[0];

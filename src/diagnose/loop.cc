@@ -162,19 +162,6 @@ std::string EffectsText(const std::vector<model::Effect>& effects) {
   return text;
 }
 
-/// What the raw channels of `summary` (LoopSummary::final_channels) add to a conclusion at the floor:
-/// the channels that stand out above kChannelStandsOut times the floor too, or nothing.
-std::string RawChannelsAtTheFloor(const LoopSummary& summary) {
-  const auto& channels = summary.final_channels;
-  if (channels.empty() || !(channels[0].times_floor >= kChannelStandsOut)) return "";
-  const std::string named = ChannelWords(channels);
-  if (named.empty()) return "";
-  return " But in raw space not every channel is at the floor: " + named + " stand" +
-         (named.find("), ") == std::string::npos ? "s" : "") +
-         " out, which the compliance space cannot see (a local mode of the plate under the sensors, a resonant mount, a "
-         "miswired channel): check them before trusting what they measure.";
-}
-
 /// LoopSummary::conclusion of `summary` (its history, floor, effects set and raw channels), `final`
 /// evaluated by `comparison` for where the remaining error sits.
 std::string Conclusion(const LoopSummary& summary, const compare::Comparison& comparison, const model::ModelSpec& final) {
@@ -200,10 +187,16 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
   }
   if (summary.confirmed) {
     std::snprintf(line, sizeof line, "The model ends at the noise floor (%.2f x %.4f)", times, summary.noise_floor.floor);
-    return std::string(line) +
-           (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
-                            : " with " + effects + ": they explain the measurement.") +
-           RawChannelsAtTheFloor(summary);
+    std::string text = std::string(line) + (effects.empty() ? ": its parameters alone explain the measurement; no effect is missing."
+                                                            : " with " + effects + ": they explain the measurement.");
+    const std::vector<ChannelError> channels = ConclusionChannels(summary);
+    if (!channels.empty()) {
+      text += " But in raw space not every channel is at the floor: " + ChannelWords(channels) +
+              (channels.size() > 1 ? " stand" : " stands") +
+              " out, which the compliance space cannot see (a local mode of the plate under the sensors, a resonant mount, a "
+              "miswired channel): check them before trusting what they measure.";
+    }
+    return text;
   }
   std::vector<compare::BandError> bands;
   std::vector<compare::ElementError> elements;
@@ -213,8 +206,7 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
                 times, summary.noise_floor.floor, summary.stop_reason.c_str(),
                 round_limit ? "Something is still missing (more rounds, --max-rounds, may find it in the catalogue)"
                             : "Something outside the catalogue is still missing");
-  const std::string channels = ChannelWords(summary.final_channels);
-  std::string text = line + WhereWords(bands, elements) + (channels.empty() ? "" : "; channels " + channels) + ".";
+  std::string text = line + WhereWords(bands, elements, ConclusionChannels(summary)) + ".";
   if (!effects.empty()) {
     text += " The effects added on the way (" + effects +
             ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed.";
@@ -223,6 +215,17 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
 }
 
 }  // namespace
+
+std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary) {
+  if (!summary.noise_floor.known || !(summary.noise_floor.floor > 0) || summary.history.empty()) return {};
+  if (!summary.implausible_effects.empty() && TimesFloor(summary.history.back().error, summary.noise_floor) <= kDoneTimesFloor) {
+    return {};
+  }
+  if (summary.confirmed && (summary.final_channels.empty() || !(summary.final_channels[0].times_floor >= kChannelStandsOut))) {
+    return {};
+  }
+  return StandingOut(summary.final_channels);
+}
 
 std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                              const LoopOptions& options, const model::Effect& newest,

@@ -65,9 +65,9 @@ struct Outcome {
   double time_s = 0;
 };
 
-// The conclusion at the floor names raw channels that stand out (diagnose::LoopSummary::final_channels).
+// The conclusion at the floor names raw channels that stand out (diagnose::ConclusionChannels).
 bool RawChannelAlarm(const diagnose::LoopSummary& summary) {
-  return summary.conclusion.find("But in raw space not every channel is at the floor") != std::string::npos;
+  return summary.confirmed && !diagnose::ConclusionChannels(summary).empty();
 }
 
 synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
@@ -208,14 +208,10 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
     where += (where.empty() ? "" : " ") + name;
   }
   if (!last.inconsistent_channels.empty()) o.channel = o.channel || changed(last.inconsistent_channels[0].channel);
-  // The raw channels the loop's conclusion names: the first two of the final model's that stand out
-  // (diagnose::ChannelWords), at the floor only when they are above kChannelStandsOut x the floor too.
+  // The raw channels the loop's conclusion names (diagnose::ConclusionChannels).
   const double floor = summary.noise_floor.floor;
   o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
-  const bool raw_named = !summary.final_channels.empty() && (!o.at_floor || RawChannelAlarm(summary));
-  for (size_t k = 0; raw_named && k < summary.final_channels.size() && k < 2; ++k) {
-    const diagnose::ChannelError& c = summary.final_channels[k];
-    if (c.times_median < diagnose::kChannelStandsOut) break;
+  for (const diagnose::ChannelError& c : diagnose::ConclusionChannels(summary)) {
     o.raw_channel = o.raw_channel || changed(c.name);
     char named[80];
     std::snprintf(named, sizeof named, " %s(%.1fx floor, %.1fx median)", c.name.c_str(), c.times_floor, c.times_median);

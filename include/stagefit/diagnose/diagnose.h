@@ -162,11 +162,6 @@ std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirecti
 void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t max_elements,
                std::vector<compare::BandError>* bands, std::vector<compare::ElementError>* elements);
 
-/// Where an error is, in words, from bands and elements sorted worst first (SortWorst()): the first two
-/// bands and three elements with their shares, "a-b Hz (s %), ...; elements O/I (s %), ...". The
-/// verdicts and the loop's conclusion say it so.
-std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements);
-
 /// The error of a model on one raw channel of a measurement (an accelerometer or an impact): the median
 /// over the channel's used elements in raw space (its row or column of the FRF matrix) of their errors
 /// (compare::ElementError::error, sqrt(sum w^2 |e|^2 / sum w^2) over the element's points). A part the
@@ -195,10 +190,20 @@ inline constexpr double kChannelStandsOut = 1.5;
 std::vector<ChannelError> WorstChannels(const model::ModelSpec& spec, const measurement::FrfData& measurement,
                                         const compare::ComparisonOptions& options, size_t max_channels);
 
-/// The channels of WorstChannels() that stand out (kChannelStandsOut) in words, for a verdict: the
-/// first two of them, "a1y (3.1 x the floor), h3 (2.0 x)" (the errors when there is no floor); empty
-/// when none stands out.
+/// The first two of `channels` (WorstChannels(), worst first) if they stand out (kChannelStandsOut):
+/// the channels a verdict names.
+std::vector<ChannelError> StandingOut(const std::vector<ChannelError>& channels);
+
+/// The channels of StandingOut() in words, for a verdict: "a1y (3.1 x the floor), h3 (2.0 x)" (the
+/// errors when there is no floor); empty when none stands out.
 std::string ChannelWords(const std::vector<ChannelError>& channels);
+
+/// Where an error is, in words, from bands and elements sorted worst first (SortWorst()): the first two
+/// bands and three elements with their shares, "a-b Hz (s %), ...; elements O/I (s %), ...". The
+/// verdicts and the loop's conclusion say it so.
+/// With `channels` (WorstChannels()), those that stand out follow: "...; channels a2z (47.8 x the floor)".
+std::string WhereWords(const std::vector<compare::BandError>& bands, const std::vector<compare::ElementError>& elements,
+                       const std::vector<ChannelError>& channels = {});
 
 /// The verdict's thresholds against the noise floor (compare::Comparison::CalcNoiseFloor()): at most
 /// this many times the floor is done; above the second, with no candidate that helps or with the best

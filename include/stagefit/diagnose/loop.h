@@ -111,6 +111,12 @@ struct LoopSummary {
   std::string HistoryTable() const;
 };
 
+/// The raw channels LoopSummary::conclusion names (of `summary`'s final_channels, its floor, history
+/// and implausible effects): above the floor those that stand out (StandingOut()); at the floor, with
+/// the effects confirmed, those too when the first is also kChannelStandsOut x the floor (a part the
+/// compliance space cannot see); none without a floor or with an implausible effect at the floor.
+std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary);
+
 /// Runs the loop on `spec` against `measurement`. Throws as diagnose::Diagnose() does.
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options = {});
 
