@@ -770,6 +770,8 @@ void Comparison::ResidualsWithModelResponse(const model::ModelSpec& spec, const 
   WeightResiduals(e, side, r);
 }
 
+response::ResponseQuantity Comparison::response_quantity() const { return ToResponseQuantity(quantity_); }
+
 model::SecondOrderSystem Comparison::ModelSystem(const model::ModelSpec& spec) const {
   return BuildModelSystem(model::AssembledModel::Assemble(spec, "model '" + spec.name + "'"));
 }

@@ -736,7 +736,7 @@ namespace {
 // The probe with the lowest cost below `threshold` (the first such in order on ties), or an empty
 // vector. Evaluated on up to 1 + clones threads when the problem can be cloned.
 Eigen::VectorXd BestProbe(const LeastSquaresProblem& problem, std::vector<std::unique_ptr<LeastSquaresProblem>>& clones,
-                          const std::vector<Eigen::VectorXd>& probes, double threshold) {
+                          const ProbeCosts* fast, const std::vector<Eigen::VectorXd>& probes, double threshold) {
   const int num_probes = static_cast<int>(probes.size());
   const int workers = WorkersFor(num_probes);
   while (static_cast<int>(clones.size()) < workers - 1) {
@@ -750,6 +750,7 @@ Eigen::VectorXd BestProbe(const LeastSquaresProblem& problem, std::vector<std::u
   ParallelFor(used, [&](int worker, int) {
     const LeastSquaresProblem& p = worker == 0 ? problem : *clones[worker - 1];
     for (int k = worker; k < num_probes; k += used) {
+      if (fast && fast->Cost(probes[k], &cost[k])) continue;
       if (p.Evaluate(probes[k], &r[worker], nullptr) && r[worker].allFinite()) cost[k] = 0.5 * r[worker].squaredNorm();
     }
   });
@@ -802,7 +803,8 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
     }
     const double threshold = summary.final_cost * (1.0 - options.probe_min_improvement);
     evaluations += static_cast<int>(probes.size());
-    Eigen::VectorXd best = BestProbe(problem, clones, probes, threshold);
+    const std::unique_ptr<const ProbeCosts> fast = options.fast_probes ? problem.PrepareProbeCosts(p) : nullptr;
+    Eigen::VectorXd best = BestProbe(problem, clones, fast.get(), probes, threshold);
     if (best.size() == 0 && options.probe_series) {
       // Pairs in series: the pair's compliance kept, its share moved.
       probes.clear();
@@ -829,7 +831,7 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
         probes.push_back(q);
       }
       evaluations += static_cast<int>(probes.size());
-      best = BestProbe(problem, clones, probes, threshold);
+      best = BestProbe(problem, clones, fast.get(), probes, threshold);
     }
     if (best.size() == 0 && options.bound_reset_iterations > 0) {
       // Parameters at a bound: set back to their initial value, the others refitted shortly.

@@ -191,6 +191,48 @@ std::unique_ptr<LeastSquaresProblem> ModelFitProblem::Clone() const {
   return std::make_unique<ModelFitProblem>(spec_, *comparison_, parameters_);
 }
 
+std::unique_ptr<const ProbeCosts> ModelFitProblem::PrepareProbeCosts(const Eigen::VectorXd& p) const {
+  STAGEFIT_ASSERT(p.size() == num_parameters(), "expected " << num_parameters() << " parameters, got " << p.size());
+  try {
+    model::ModelSpec at = spec_;
+    for (int i = 0; i < num_parameters(); ++i) model::SetParameter(at, parameters_[i], p[i]);
+    auto probes = std::make_unique<const compare::ParameterProbes>(*comparison_, at, parameters_);
+    if (!probes->any()) return nullptr;
+    return std::make_unique<ParameterProbeCosts>(std::move(probes), p, 0);
+  } catch (const NumericalError&) {
+    return nullptr;
+  } catch (const InputError&) {
+    return nullptr;
+  }
+}
+
+ParameterProbeCosts::ParameterProbeCosts(std::unique_ptr<const compare::ParameterProbes> probes, Eigen::VectorXd at,
+                                         int first)
+    : probes_(std::move(probes)), at_(std::move(at)), first_(first) {}
+
+bool ParameterProbeCosts::Cost(const Eigen::VectorXd& q, double* cost) const {
+  STAGEFIT_ASSERT(q.size() == at_.size(), "expected " << at_.size() << " parameters, got " << q.size());
+  std::vector<std::pair<int, double>> changes;
+  for (int i = 0; i < q.size(); ++i) {
+    if (q[i] == at_[i]) continue;
+    const int k = i - first_;
+    if (k < 0 || !probes_->CanProbe(k)) return false;
+    changes.emplace_back(k, q[i]);
+  }
+  Eigen::VectorXd r;
+  try {
+    if (!probes_->Residuals(changes, &r)) return false;
+  } catch (const NumericalError&) {
+    *cost = std::numeric_limits<double>::infinity();
+    return true;
+  } catch (const InputError&) {
+    *cost = std::numeric_limits<double>::infinity();
+    return true;
+  }
+  *cost = r.allFinite() ? 0.5 * r.squaredNorm() : std::numeric_limits<double>::infinity();
+  return true;
+}
+
 std::vector<ParameterSpec> MakeParameterSpecs(const model::ModelSpec& spec,
                                               const std::vector<model::ParameterInfo>& parameters,
                                               const std::vector<BoundRule>& bounds) {

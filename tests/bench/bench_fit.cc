@@ -11,6 +11,9 @@
 //   bench_fit [--trials 20] [--frequencies 1000] [--params "*.k.*"] [--compare-trials 5]
 //             [--nlopt-algorithm LN_BOBYQA] [--probe-rounds N] [--radius R] [--nonmonotonic 0|1]
 //             [--probe-initial 0|1] [--probe-series 0|1] [--verbose 1|2] [--first-trial K]
+//             [--probe-trials P]
+//   --probe-trials: the first P trials (default --compare-trials) fitted again with every basin probe
+//   costed by Evaluate() instead of the low-rank update (FitOptions::fast_probes), with the time ratio.
 //
 // Even a fitter that always finds the global optimum fails the 3-standard-deviation test in about
 // 1 - 0.9973^n of the trials (7 % for n = 27): the program prints that share beside its own.
@@ -127,6 +130,7 @@ int main(int argc, char** argv) {
   double radius = -1;     // initial trust-region radius; -1: FitOptions' default
   int nonmonotonic = -1;
   int probe_initial = -1, probe_series = -1;  // -1: FitOptions' default
+  int probe_trials = -1;                       // -1: compare_trials
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     const char* value = argv[i + 1];
@@ -142,6 +146,7 @@ int main(int argc, char** argv) {
     else if (key == "--nonmonotonic") nonmonotonic = std::atoi(value);
     else if (key == "--probe-initial") probe_initial = std::atoi(value);
     else if (key == "--probe-series") probe_series = std::atoi(value);
+    else if (key == "--probe-trials") probe_trials = std::atoi(value);
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 1;
@@ -202,5 +207,27 @@ int main(int argc, char** argv) {
   std::printf("median time ratio nlopt / ceres-analytic: %.3g\n", Median(nlopt.times) / Median(ceres_subset.times));
   std::printf("median time ratio finite-difference / analytic: %.3g\n",
               Median(numeric.times) / Median(ceres_subset.times));
+
+  // The basin probes costed by Evaluate() (a set-up per probe) against the low-rank update of the
+  // responses (FitOptions::fast_probes), on the same trials: the same fits to rounding.
+  if (probe_trials < 0) probe_trials = compare_trials;
+  Tally fast_probes, slow_probes;
+  fit::FitOptions slow_options = ceres_options;
+  slow_options.fast_probes = false;
+  int same = 0;
+  for (int k = 0; k < std::min(probe_trials, trials); ++k) {
+    const Trial fast = RunTrial(problems[k], patterns, ceres_options);
+    const Trial slow = RunTrial(problems[k], patterns, slow_options);
+    fast_probes.Add(fast);
+    slow_probes.Add(slow);
+    same += std::abs(fast.error - slow.error) <= 1e-6 * slow.error;
+    std::fflush(stdout);
+  }
+  if (probe_trials > 0) {
+    fast_probes.Print("ceres LM, probes by low-rank update");
+    slow_probes.Print("ceres LM, probes by Evaluate()");
+    std::printf("probe trials ending at the same error (1e-6): %d of %d; median time ratio Evaluate() / low-rank "
+                "probes: %.3g\n", same, std::min(probe_trials, trials), Median(slow_probes.times) / Median(fast_probes.times));
+  }
   return 0;
 }

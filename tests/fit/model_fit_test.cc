@@ -110,6 +110,46 @@ TEST(FitModel, BasinProbesLeaveALocalMinimumThePlainFitStopsIn) {
   }
 }
 
+TEST(FitModel, ProbesCostedByTheLowRankUpdateAreTheEvaluatedOnes) {
+  // The probes' costs from compare::ParameterProbes against Evaluate() at the same points, and the
+  // fit of the basin-probe case above with either: the same fit to rounding.
+  const std::vector<std::string> patterns = {"*.k.*"};
+  const auto data = MakeBenchTrial(107).data;
+  model::ModelSpec spec = model::DefaultModelSpec();
+  const auto comparison = compare::Comparison::Create(spec, data);
+  const auto params = model::MatchParameters(spec, patterns);
+  const ModelFitProblem problem(spec, comparison, params);
+  Eigen::VectorXd p(problem.num_parameters());
+  for (int i = 0; i < p.size(); ++i) p[i] = model::GetParameter(spec, params[i]);
+  const auto fast = problem.PrepareProbeCosts(p);
+  ASSERT_NE(fast, nullptr);
+  for (int i = 0; i < p.size(); i += 5) {
+    for (const double factor : {0.125, 8.0}) {
+      Eigen::VectorXd q = p;
+      q[i] *= factor;
+      double cost = 0.0;
+      ASSERT_TRUE(fast->Cost(q, &cost)) << params[i].name;
+      Eigen::VectorXd r;
+      ASSERT_TRUE(problem.Evaluate(q, &r, nullptr));
+      EXPECT_NEAR(cost, 0.5 * r.squaredNorm(), 1e-9 * cost) << params[i].name << " x " << factor;
+    }
+  }
+
+  FitSummary summary[2];
+  for (const bool fast_probes : {false, true}) {
+    model::ModelSpec fitted = model::DefaultModelSpec();
+    FitOptions options;
+    options.fast_probes = fast_probes;
+    summary[fast_probes] = FitModel(fitted, comparison, params, options);
+  }
+  EXPECT_NEAR(summary[1].final_error, summary[0].final_error, 1e-9 * summary[0].final_error);
+  EXPECT_EQ(summary[1].num_evaluations, summary[0].num_evaluations);
+  for (size_t i = 0; i < params.size(); ++i) {
+    EXPECT_NEAR(summary[1].parameters[i].value, summary[0].parameters[i].value, 1e-6 * summary[0].parameters[i].value)
+        << params[i].name;
+  }
+}
+
 // One trial of tests/bench/bench_fit (seed 100 + trial): all 27 stiffnesses scattered, fitted from
 // Table 2.1 once with the probes of `disabled` turned off (and the bound resets, the last resort
 // that can stand in for them, unless `keep_bound_resets`) and once with the default options. Returns

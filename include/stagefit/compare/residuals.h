@@ -305,6 +305,10 @@ class Comparison {
   std::vector<Eigen::MatrixXcd> EvaluateModel(const model::ModelSpec& spec) const;
 
   ComparisonSpace space() const { return space_; }
+  /// The response the model's FRFs are computed as (the measurement's quantity).
+  response::ResponseQuantity response_quantity() const;
+  /// The options of the model's FRF evaluations (their lowest frequency is the grid's).
+  const response::FrfEvaluatorOptions& frf_options() const { return frf_options_; }
   measurement::FrfQuantity quantity() const { return quantity_; }
   /// Frequencies of the comparison grid (the measurement's within the band), Hz.
   const Eigen::VectorXd& frequency_hz() const { return frequency_hz_; }

@@ -60,6 +60,9 @@ class EffectProblem final : public fit::LeastSquaresProblem {
   int num_residuals() const override { return comparison_->num_residuals(); }
   bool has_jacobian() const override { return true; }
   bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override;
+  /// The probes of the model's joint stiffnesses, dampings and couplings (fit::ParameterProbeCosts)
+  /// around `p`; a point that changes an effect's parameter is left to Evaluate().
+  std::unique_ptr<const fit::ProbeCosts> PrepareProbeCosts(const Eigen::VectorXd& p) const override;
 
   /// The (first) effect with the effect parameters of `p`.
   model::Effect EffectAt(const Eigen::VectorXd& p) const;

@@ -41,6 +41,18 @@
 
 namespace stagefit::fit {
 
+/// The costs of points near one point, cheaper than LeastSquaresProblem::Evaluate() for the points it
+/// can cost (LeastSquaresProblem::PrepareProbeCosts()): what the basin probes of SolveWithProbes()
+/// evaluate by the hundred.
+class ProbeCosts {
+ public:
+  virtual ~ProbeCosts() = default;
+  /// cost(q) = 0.5 ||r(q)||^2 into `cost` (+infinity where r cannot be evaluated at q), equal to
+  /// Evaluate()'s to rounding; false when q is not a point it can cost (the caller evaluates it).
+  /// Called from several threads at once.
+  virtual bool Cost(const Eigen::VectorXd& q, double* cost) const = 0;
+};
+
 /// A least-squares problem in natural units. Implementations need not be thread-safe: the solvers call
 /// Evaluate() from one thread.
 class LeastSquaresProblem {
@@ -59,6 +71,13 @@ class LeastSquaresProblem {
   /// nullptr (the default) when the problem cannot be copied so: its evaluations then stay on one
   /// thread.
   virtual std::unique_ptr<LeastSquaresProblem> Clone() const { return nullptr; }
+  /// Costs of points near `p` (a model fit: those that change only parameters entering the model's
+  /// dynamic stiffness linearly, by a low-rank update of the responses at `p`); nullptr (the default)
+  /// when the problem has none or `p` cannot be evaluated.
+  virtual std::unique_ptr<const ProbeCosts> PrepareProbeCosts(const Eigen::VectorXd& p) const {
+    static_cast<void>(p);
+    return nullptr;
+  }
 };
 
 /// One free parameter of a fit.
@@ -171,6 +190,10 @@ struct FitOptions {
   /// the series probes of pairs of springs in series.
   bool probe_initial_values = true;
   bool probe_series = true;
+  /// The probes costed by the problem's LeastSquaresProblem::PrepareProbeCosts() where it can (equal to
+  /// Evaluate()'s costs to rounding, at a fraction of the time); false: every probe by Evaluate() (for
+  /// the benchmarks' comparison).
+  bool fast_probes = true;
   /// When no probe above lowers the cost: each log-scale parameter that ended at a bound is set back to
   /// its initial value and the others refitted from the optimum for this many iterations (0: none). A
   /// spring run to its bound has pushed its mode out of the band and the others have settled without

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "stagefit/compare/parameter_probes.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/fit/least_squares.h"
 #include "stagefit/model/model_spec.h"
@@ -81,6 +82,20 @@ double DifferenceStep(const model::ModelSpec& spec, const model::ParameterInfo& 
 /// The least-squares problem "parameters of `spec` -> residuals of `comparison`". The parameters may
 /// include a body's mass and the effects' parameters (model/parameters.h); their columns come by the
 /// routes of ColumnRoute. Holds a copy of `spec` as its workspace: not thread-safe (use one per thread).
+/// ProbeCosts (least_squares.h) from compare::ParameterProbes: the problem's parameters first ..
+/// first + n - 1 are the probes' n parameters; a point that changes another parameter from `at`, or
+/// one the probes cannot, is left to Evaluate().
+class ParameterProbeCosts final : public ProbeCosts {
+ public:
+  ParameterProbeCosts(std::unique_ptr<const compare::ParameterProbes> probes, Eigen::VectorXd at, int first);
+  bool Cost(const Eigen::VectorXd& q, double* cost) const override;
+
+ private:
+  std::unique_ptr<const compare::ParameterProbes> probes_;
+  Eigen::VectorXd at_;
+  int first_ = 0;
+};
+
 class ModelFitProblem final : public LeastSquaresProblem {
  public:
   /// `parameters` from model::MatchParameters(spec, ...) (or ListParameters). `comparison` must outlive
@@ -96,6 +111,9 @@ class ModelFitProblem final : public LeastSquaresProblem {
   bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian) const override;
   /// A copy with its own workspace (the comparison is shared: it is immutable).
   std::unique_ptr<LeastSquaresProblem> Clone() const override;
+  /// The probes of the joint stiffnesses, dampings and couplings among the parameters
+  /// (compare::ParameterProbes) around `p`; nullptr when there are none or the model is invalid at `p`.
+  std::unique_ptr<const ProbeCosts> PrepareProbeCosts(const Eigen::VectorXd& p) const override;
 
   const std::vector<model::ParameterInfo>& parameters() const { return parameters_; }
   /// The route of each differenced parameter's column at the last Evaluate() with a Jacobian, in the
