@@ -35,6 +35,7 @@ StiffnessUpdate StiffnessUpdate::Create(const model::SecondOrderSystem& system, 
     if (u.position_[c] >= 0) throw InputError("stiffness update: coordinate " + std::to_string(c) + " given twice");
     u.position_[c] = t;
   }
+  u.nt_ = nt;
   u.no_ = system.num_outputs();
   u.ni_ = system.num_inputs();
   u.power_ = SPower(quantity);
@@ -95,10 +96,10 @@ bool StiffnessUpdate::Evaluate(const std::vector<DynamicStiffnessDerivative::Ent
   auto local = [&](int c) { return static_cast<int>(std::find(changed.begin(), changed.end(), c) - changed.begin()); };
 
   const int nf = num_frequencies();
-  const int na = no_ + static_cast<int>(std::count_if(position_.begin(), position_.end(), [](int t) { return t >= 0; }));
+  const int na = no_ + nt_;
   Small D(m, m), G(m, m), A(m, m);
   Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxChanged, Eigen::Dynamic> X(m, ni_), W(m, ni_);
-  Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic> Y(no_, m);
+  Eigen::MatrixXcd Y(no_, m), update(no_, ni_);
   for (int f = 0; f < nf; ++f) {
     const double w = omega_rad_s_(f);
     const Complex s(0.0, w);
@@ -116,7 +117,8 @@ bool StiffnessUpdate::Evaluate(const std::vector<DynamicStiffnessDerivative::Ent
     if (!lu.isInvertible()) return false;
     W = lu.solve(D * X);
     const Complex pre = std::pow(s, power_) * std::polar(1.0, -w * delay_s_);
-    const Eigen::MatrixXcd update = pre * (Y * W);
+    update.noalias() = Y * W;
+    update *= pre;
     for (int i = 0; i < ni_; ++i) {
       for (int o = 0; o < no_; ++o) (*out)(f, o + no_ * i) -= update(o, i);
     }

@@ -19,6 +19,7 @@
 // 1 - 0.9973^n of the trials (7 % for n = 27): the program prints that share beside its own.
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -228,6 +229,41 @@ int main(int argc, char** argv) {
     slow_probes.Print("ceres LM, probes by Evaluate()");
     std::printf("probe trials ending at the same error (1e-6): %d of %d; median time ratio Evaluate() / low-rank "
                 "probes: %.3g\n", same, std::min(probe_trials, trials), Median(slow_probes.times) / Median(fast_probes.times));
+    // One probe alone, each way: every parameter of the first trial's model as given by each probe
+    // factor, on one thread.
+    model::ModelSpec spec = model::DefaultModelSpec();
+    const auto comparison = compare::Comparison::Create(spec, problems[0].data);
+    const auto params = model::MatchParameters(spec, patterns);
+    const fit::ModelFitProblem problem(spec, comparison, params);
+    Eigen::VectorXd p(problem.num_parameters());
+    for (int i = 0; i < p.size(); ++i) p[i] = model::GetParameter(spec, params[i]);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto fast = problem.PrepareProbeCosts(p);
+    const auto t1 = std::chrono::steady_clock::now();
+    double worst = 0.0, fast_s = 0.0, slow_s = 0.0;
+    int count = 0;
+    for (int i = 0; i < p.size(); ++i) {
+      for (const double factor : fit::FitOptions{}.probe_factors) {
+        Eigen::VectorXd q = p;
+        q[i] *= factor;
+        double cost = 0.0;
+        Eigen::VectorXd r;
+        const auto a = std::chrono::steady_clock::now();
+        const bool ok = fast && fast->Cost(q, &cost);
+        const auto b = std::chrono::steady_clock::now();
+        problem.Evaluate(q, &r, nullptr);
+        const auto c = std::chrono::steady_clock::now();
+        if (!ok) continue;
+        fast_s += std::chrono::duration<double>(b - a).count();
+        slow_s += std::chrono::duration<double>(c - b).count();
+        worst = std::max(worst, std::abs(cost - 0.5 * r.squaredNorm()) / (0.5 * r.squaredNorm()));
+        ++count;
+      }
+    }
+    std::printf("one probe (%d, %d frequencies): %.3g ms by the update (set-up %.3g ms once), %.3g ms by Evaluate(), "
+                "ratio %.3g; largest relative difference of the costs %.2g\n",
+                count, frequencies, 1e3 * fast_s / count, 1e3 * std::chrono::duration<double>(t1 - t0).count(),
+                1e3 * slow_s / count, slow_s / fast_s, worst);
   }
   return 0;
 }

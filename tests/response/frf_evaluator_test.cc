@@ -8,6 +8,7 @@
 #include <cmath>
 #include <complex>
 
+#include "response_test_util.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
 #include "stagefit/model/model_file.h"
@@ -18,6 +19,9 @@ namespace {
 
 const FrfEvaluatorOptions kDirectOptions{FrfMethod::kDirect};
 using Complex = std::complex<double>;
+using testing::kStructuralZero;
+using testing::LogFrequencies;
+using testing::WorstRelativeToPeak;
 constexpr Complex kJ(0.0, 1.0);
 
 // Modal and direct paths agree to this fraction of each element's peak |H| over the frequency set
@@ -26,12 +30,6 @@ constexpr double kPathAgreement = 1e-9;
 // A closed-form response is matched to this fraction of its peak: both paths round at ~1e-15 on
 // a 1-DoF system; the margin covers the eigen-solver's backward error.
 constexpr double kClosedForm = 1e-12;
-
-Eigen::VectorXd LogFrequencies(double fmin, double fmax, int n) {
-  Eigen::VectorXd f(n);
-  for (int i = 0; i < n; ++i) f(i) = fmin * std::pow(fmax / fmin, static_cast<double>(i) / (n - 1));
-  return f;
-}
 
 // One body of mass m on one spring: only Dz free.
 model::ModelSpec SingleDofSpec(double k, double c, double eta, double m) {
@@ -86,28 +84,6 @@ Eigen::MatrixXcd DirectReference(const model::SecondOrderSystem& sys, double fre
   Eigen::MatrixXcd F = (sys.B0 - w * w * sys.B2).cast<Complex>();
   Eigen::MatrixXcd H = sys.Cq.cast<Complex>() * Z.fullPivLu().solve(F) + sys.D0.cast<Complex>();
   return H * std::pow(kJ * w, power) * std::exp(-kJ * w * sys.delay_s);
-}
-
-// Elements that vanish by symmetry are exact zeros in a dense direct solve and rounding noise in a
-// modal sum: about 2n eps cond(V) ~ 1e-13 of the largest element of the matrix for the micro-station
-// (54 poles, cond(V) ~ 12). They must stay below kStructuralZero of that largest element.
-constexpr double kStructuralZero = 1e-12;
-
-// Largest |a - b| per element over the frequencies, divided by that element's peak |b| (elements with
-// a zero peak: checked against kStructuralZero of the largest |b| and not counted).
-double WorstRelativeToPeak(const Eigen::MatrixXcd& a, const Eigen::MatrixXcd& b) {
-  double worst = 0.0;
-  const double global_peak = b.cwiseAbs().maxCoeff();
-  for (Eigen::Index c = 0; c < b.cols(); ++c) {
-    const double peak = b.col(c).cwiseAbs().maxCoeff();
-    const double error = (a.col(c) - b.col(c)).cwiseAbs().maxCoeff();
-    if (peak == 0.0) {
-      EXPECT_LE(error, kStructuralZero * global_peak) << "element " << c << " vanishes by symmetry";
-      continue;
-    }
-    worst = std::max(worst, error / peak);
-  }
-  return worst;
 }
 
 Eigen::MatrixXcd ReferenceArray(const model::SecondOrderSystem& sys, const Eigen::VectorXd& f, int power) {

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "response_test_util.h"
 #include "stagefit/common/error.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/model/parameters.h"
@@ -14,35 +15,14 @@
 namespace stagefit::response {
 namespace {
 
+using testing::LogFrequencies;
+using testing::WorstRelativeToPeak;
+
 // The update and a new set-up of the changed system (its own direct solve per frequency) agree to
 // this fraction of each element's peak: the identity is exact; rounding in the subtraction grows with
 // |Z^-1| at the unchanged system's resonances (|H| / 2 zeta, ~1e3 for the micro-station's damping),
 // ~1e-13 of the peak.
 constexpr double kAgreement = 1e-9;
-// An element that vanishes by symmetry (exactly zero in the direct solve) is rounding noise in the
-// update, below this fraction of the largest element's peak.
-constexpr double kStructuralZero = 1e-12;
-
-Eigen::VectorXd LogFrequencies(double fmin, double fmax, int n) {
-  Eigen::VectorXd f(n);
-  for (int i = 0; i < n; ++i) f(i) = fmin * std::pow(fmax / fmin, static_cast<double>(i) / (n - 1));
-  return f;
-}
-
-double WorstRelativeToPeak(const Eigen::MatrixXcd& a, const Eigen::MatrixXcd& b) {
-  double worst = 0.0;
-  const double global_peak = b.cwiseAbs().maxCoeff();
-  for (Eigen::Index c = 0; c < b.cols(); ++c) {
-    const double peak = b.col(c).cwiseAbs().maxCoeff();
-    const double error = (a.col(c) - b.col(c)).cwiseAbs().maxCoeff();
-    if (peak == 0.0) {
-      EXPECT_LE(error, kStructuralZero * global_peak) << "element " << c << " vanishes by symmetry";
-      continue;
-    }
-    worst = std::max(worst, error / peak);
-  }
-  return worst;
-}
 
 // The micro-station with loss factors and a coupling in the hexapod (a twentieth of the largest the
 // joint allows, sqrt(k_Dy k_Rx), so that it stays so with either stiffness or itself changed by 8):

@@ -58,7 +58,7 @@ class StiffnessUpdate {
   Eigen::VectorXd omega_rad_s_;
   int power_ = 0;
   double delay_s_ = 0.0;
-  int no_ = 0, ni_ = 0;
+  int no_ = 0, ni_ = 0, nt_ = 0;  // outputs, inputs, |T|
   std::vector<int> position_;  // per system coordinate: its index in T, or -1
   // Per frequency (column f), the augmented receptance [H0, Cq Z^-1 P_T; P_T' Z^-1 B, G] column-major
   // ((Nout + |T|) x (Nin + |T|)), without s^p e^{-s tau}.
