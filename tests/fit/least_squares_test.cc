@@ -6,7 +6,9 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <random>
+#include <vector>
 
 #include "stagefit/common/error.h"
 
@@ -89,6 +91,81 @@ class Product final : public LeastSquaresProblem {
  private:
   Eigen::VectorXd t_, y_;
 };
+
+// A local minimum near p = 1 and the global one at p = 8 (x = ln p, L = ln 8):
+//     r = [x (x - L), eps (x - L)],  cost ~ 0.5 eps^2 L^2 near x = eps^2 / L,  0 at x = L;
+// the fit from p = 1 stops in the first, a basin probe by 8 lands in the second. Counts its
+// evaluations; PrepareProbeCosts() (with `costs_probes`) costs the probes that raise p and leaves the
+// others to Evaluate().
+class TwoBasins final : public LeastSquaresProblem {
+ public:
+  static constexpr double kEps = 0.1;
+  explicit TwoBasins(bool costs_probes) : costs_probes_(costs_probes) {}
+  int num_parameters() const override { return 1; }
+  int num_residuals() const override { return 2; }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    ++evaluations;
+    *r = Residuals(p[0]);
+    if (J != nullptr) {
+      const double x = std::log(p[0]), L = std::log(8.0);
+      J->resize(2, 1);
+      (*J)(0, 0) = (2 * x - L) / p[0];
+      (*J)(1, 0) = kEps / p[0];
+    }
+    return true;
+  }
+  std::unique_ptr<const ProbeCosts> PrepareProbeCosts(const Eigen::VectorXd& p) const override {
+    if (!costs_probes_) return nullptr;
+    return std::make_unique<Costs>(this, p[0]);
+  }
+  static Eigen::Vector2d Residuals(double p) {
+    const double x = std::log(p), L = std::log(8.0);
+    return {x * (x - L), kEps * (x - L)};
+  }
+  mutable int evaluations = 0;
+  mutable int costed = 0;
+
+ private:
+  class Costs final : public ProbeCosts {
+   public:
+    Costs(const TwoBasins* problem, double at) : problem_(problem), at_(at) {}
+    bool Cost(const Eigen::VectorXd& q, double* cost) const override {
+      if (!(q[0] > at_)) return false;
+      ++problem_->costed;
+      *cost = 0.5 * Residuals(q[0]).squaredNorm();
+      return true;
+    }
+
+   private:
+    const TwoBasins* problem_;
+    double at_;
+  };
+  bool costs_probes_;
+};
+
+TEST(SolveWithProbes, TakesTheProbesCostsFromTheProblemWhereItCanAndEvaluatesTheOthers) {
+  std::vector<ParameterSpec> specs = {{"p", "N/m", 1.0, 1e-3, 1e3, true}};
+  FitOptions plain;
+  plain.max_probe_rounds = 0;
+  EXPECT_GT(Solve(TwoBasins(false), specs, plain).final_cost, 0.1 * 0.5 * std::pow(TwoBasins::kEps * std::log(8.0), 2))
+      << "the fit from p = 1 no longer stops in the local minimum";
+  const TwoBasins evaluated(false), costed(true);
+  FitOptions options;
+  const FitSummary a = SolveWithProbes(evaluated, specs, options);
+  const FitSummary b = SolveWithProbes(costed, specs, options);
+  EXPECT_NEAR(a.parameters[0].value, 8.0, 1e-6);
+  EXPECT_EQ(a.final_cost, b.final_cost);
+  EXPECT_EQ(a.parameters[0].value, b.parameters[0].value);
+  // Half the six probes of each round raise p: those were costed, the others evaluated.
+  EXPECT_GT(costed.costed, 0);
+  EXPECT_EQ(costed.evaluations + costed.costed, evaluated.evaluations);
+  options.fast_probes = false;
+  const TwoBasins off(true);
+  SolveWithProbes(off, specs, options);
+  EXPECT_EQ(off.costed, 0);
+  EXPECT_EQ(off.evaluations, evaluated.evaluations);
+}
 
 constexpr double kTrueA = 2.0;
 constexpr double kTrueTau = 0.3;   // s
