@@ -137,6 +137,18 @@ Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects,
               o.named_all ? "named " : "", o.at_floor ? "floor " : "", o.near_truth ? "truth " : "",
               summary.confirmed || summary.effects_added.empty() ? "" : "(not confirmed) ", o.raw_alarm ? "RAW-CHANNEL-ALARM " : "",
               summary.time_s);
+  if (o.raw_alarm) {
+    // The noise-free truth's own raw channels on the same data: an alarm the truth raises too comes
+    // from the data and their floor, not from what the loop fitted.
+    std::string line;
+    for (const auto& c : diagnose::WorstChannels(hidden.truth, hidden.measurement, loop_options.diagnose.comparison, 3)) {
+      char word[96];
+      std::snprintf(word, sizeof word, "%s%s %.2fx the floor (%.2fx the median)", line.empty() ? "" : ", ", c.name.c_str(),
+                    c.times_floor, c.times_median);
+      line += word;
+    }
+    std::printf("    raw channels of the truth: %s\n", line.empty() ? "(none)" : line.c_str());
+  }
   if (verbose) {
     for (const auto& e : hidden.effects) std::printf("    hidden: %s (visibility %.1f)\n", e.description.c_str(), e.visibility);
     std::printf("%s", summary.HistoryTable().c_str());
