@@ -216,6 +216,29 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
 
 }  // namespace
 
+namespace {
+
+// The raw channels of `model` refitted in raw space (its parameters and its effects', on the band and
+// with the weights of the loop's comparison), when that lowers its raw error; `channels` otherwise.
+std::vector<ChannelError> ChannelsAfterRawRefit(const model::ModelSpec& model, const measurement::FrfData& measurement,
+                                                const LoopOptions& options, const std::vector<ChannelError>& channels) {
+  compare::ComparisonOptions raw = options.diagnose.comparison;
+  raw.space = compare::ComparisonSpace::kRaw;
+  try {
+    const compare::Comparison comparison = compare::Comparison::Create(model, measurement, raw);
+    model::ModelSpec refitted = model;
+    FitParametersAndEffects(&refitted, comparison, options);
+    if (!(comparison.Error(refitted) < comparison.Error(model))) return channels;
+    return WorstChannels(refitted, measurement, options.diagnose.comparison, channels.size());
+  } catch (const InputError&) {
+    return channels;
+  } catch (const NumericalError&) {
+    return channels;
+  }
+}
+
+}  // namespace
+
 std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary) {
   if (!summary.noise_floor.known || !(summary.noise_floor.floor > 0) || summary.history.empty()) return {};
   if (!summary.implausible_effects.empty() && TimesFloor(summary.history.back().error, summary.noise_floor) <= kDoneTimesFloor) {
@@ -673,6 +696,9 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // false when the floor is unknown (NaN)
   summary.confirmed = at_floor(summary.history.back().error) && summary.implausible_effects.empty();
   summary.final_channels = WorstChannels(current, measurement, options.diagnose.comparison, 6);
+  if (summary.confirmed && !ConclusionChannels(summary).empty()) {
+    summary.final_channels = ChannelsAfterRawRefit(current, measurement, options, summary.final_channels);
+  }
   summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own, then every step of the loop.
   current.history = spec.history;

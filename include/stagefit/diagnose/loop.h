@@ -99,8 +99,12 @@ struct LoopSummary {
   std::string conclusion;
   /// The final model's error on the raw channels, worst first (WorstChannels(), at most 6): the
   /// conclusion names those that stand out, at the floor too, where the compliance space may not see a
-  /// part that one sensor or a few carry (a local mode of the plate, a resonant mount). Empty for a
-  /// measurement given already projected.
+  /// part that one sensor or a few carry (a local mode of the plate, a resonant mount). At the floor,
+  /// when one stands out, these are the channels of the final model with its parameters and its
+  /// effects' refitted in raw space (when that lowers its raw error): a channel the model can fit there
+  /// is not the bench's fault (a payload's lateral offset the compliance space hardly sees put one
+  /// sensor at 1.8x the floor, seed 63012 of eval_loop). Empty for a measurement given already
+  /// projected.
   std::vector<ChannelError> final_channels;
   /// The last diagnosis whole (its "where": worst bands, elements, inconsistent channels); empty
   /// (no candidates, no bands) when the first fit already ended at the noise floor.
