@@ -214,10 +214,6 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
   return text;
 }
 
-}  // namespace
-
-namespace {
-
 // The raw channels of `model` refitted in raw space (its parameters and its effects', on the band and
 // with the weights of the loop's comparison), when that lowers its raw error; `channels` otherwise.
 std::vector<ChannelError> ChannelsAfterRawRefit(const model::ModelSpec& model, const measurement::FrfData& measurement,
