@@ -86,15 +86,7 @@ bool EffectProblem::SpecAt(const Eigen::VectorXd& p, model::ModelSpec* spec) con
 std::unique_ptr<const fit::ProbeCosts> EffectProblem::PrepareProbeCosts(const Eigen::VectorXd& p) const {
   model::ModelSpec spec;
   if (model_params_.empty() || !SpecAt(p, &spec)) return nullptr;
-  try {
-    auto probes = std::make_unique<const compare::ParameterProbes>(*comparison_, spec, model_params_);
-    if (!probes->any()) return nullptr;
-    return std::make_unique<fit::ParameterProbeCosts>(std::move(probes), p, static_cast<int>(effect_specs_.size()));
-  } catch (const NumericalError&) {
-    return nullptr;
-  } catch (const InputError&) {
-    return nullptr;
-  }
+  return fit::MakeParameterProbeCosts(*comparison_, spec, model_params_, p, static_cast<int>(effect_specs_.size()));
 }
 
 double EffectProblem::Step(int i, double value) const {

@@ -193,12 +193,22 @@ std::unique_ptr<LeastSquaresProblem> ModelFitProblem::Clone() const {
 
 std::unique_ptr<const ProbeCosts> ModelFitProblem::PrepareProbeCosts(const Eigen::VectorXd& p) const {
   STAGEFIT_ASSERT(p.size() == num_parameters(), "expected " << num_parameters() << " parameters, got " << p.size());
+  model::ModelSpec at = spec_;
   try {
-    model::ModelSpec at = spec_;
     for (int i = 0; i < num_parameters(); ++i) model::SetParameter(at, parameters_[i], p[i]);
-    auto probes = std::make_unique<const compare::ParameterProbes>(*comparison_, at, parameters_);
+  } catch (const InputError&) {
+    return nullptr;
+  }
+  return MakeParameterProbeCosts(*comparison_, at, parameters_, p, 0);
+}
+
+std::unique_ptr<const ProbeCosts> MakeParameterProbeCosts(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                                          const std::vector<model::ParameterInfo>& parameters,
+                                                          const Eigen::VectorXd& p, int first) {
+  try {
+    auto probes = std::make_unique<const compare::ParameterProbes>(comparison, spec, parameters);
     if (!probes->any()) return nullptr;
-    return std::make_unique<ParameterProbeCosts>(std::move(probes), p, 0);
+    return std::make_unique<ParameterProbeCosts>(std::move(probes), p, first);
   } catch (const NumericalError&) {
     return nullptr;
   } catch (const InputError&) {

@@ -96,6 +96,13 @@ class ParameterProbeCosts final : public ProbeCosts {
   int first_ = 0;
 };
 
+/// ParameterProbeCosts of `parameters` around `spec` (the model at `p`, whose entries first .. are
+/// those parameters): nullptr when none of them can be probed or `spec` cannot be evaluated. What a
+/// problem's LeastSquaresProblem::PrepareProbeCosts() returns.
+std::unique_ptr<const ProbeCosts> MakeParameterProbeCosts(const compare::Comparison& comparison, const model::ModelSpec& spec,
+                                                          const std::vector<model::ParameterInfo>& parameters,
+                                                          const Eigen::VectorXd& p, int first);
+
 class ModelFitProblem final : public LeastSquaresProblem {
  public:
   /// `parameters` from model::MatchParameters(spec, ...) (or ListParameters). `comparison` must outlive
