@@ -11,7 +11,7 @@
 #        bash scripts/fuzz.sh --make-corpus    regenerate the seeds of tests/fuzz/corpus/
 #   --seconds N      time per target (default 15: about 1.5 minutes for all of them)
 #   --runs N         instead of a time, N executions per target from a fixed seed (--seed, default
-#                    1), as the test command runs it: the same amount of work on every machine
+#                    1), as run after a change to a reader: the same amount of work on every machine
 #                    however fast (the coverage feedback still varies a little); exploring for new
 #                    failures is for --seconds
 #   --targets a,b    only these targets (names as in tests/fuzz/, e.g. uff_measurement_fuzz)

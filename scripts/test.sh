@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs the whole test suite (unit, integration and CLI tests) with CTest, then
-# a short fuzz pass over the file readers (scripts/fuzz.sh).
+# Sets up, builds and runs the whole test suite (unit, integration and CLI tests, and the file
+# readers' stored fuzz inputs replayed: FuzzReplay.*) with CTest. Fuzzing for new inputs (clang,
+# libFuzzer, sanitizers) is its own job: bash scripts/fuzz.sh (docs/reliability.md).
 # Usage: bash scripts/test.sh            (release build in ./build)
 #        bash scripts/test.sh --sanitize (AddressSanitizer + UBSan build in ./build-asan)
 set -euo pipefail
@@ -14,6 +15,3 @@ else
   cd build
 fi
 ctest --output-on-failure -j"$(nproc)" --timeout 600
-# Then a short libFuzzer pass over every file reader (clang build in ./build-fuzz): 100000 inputs
-# per target from a fixed seed: the same amount of work on every machine (exploring: --seconds N).
-cd .. && bash scripts/fuzz.sh --runs 100000 --seed 1
