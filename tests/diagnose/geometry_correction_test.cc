@@ -298,7 +298,8 @@ TEST(FindTurnedChannel, NamesNoChannelWhenNoCorrectionLeavesTheOthersConsistent)
     for (const auto& e : c.effects) EXPECT_NE(e.name, "sensor-geometry");
     const Eigen::Vector3d X = compare::Comparison::Create(nominal, c.measurement).frame_origin_W();
     const auto estimates = measurement::EstimateChannelDirections(c.measurement, X);
-    const auto off = std::find_if(estimates.begin(), estimates.end(), [&](const auto& e) { return e.name == channel; });
+    const std::string& name = channel;  // a lambda may not capture a structured binding in C++17
+    const auto off = std::find_if(estimates.begin(), estimates.end(), [&](const auto& e) { return e.name == name; });
     ASSERT_NE(off, estimates.end());
     EXPECT_GT(off->angle_rad, 15 * M_PI / 180);
     EXPECT_LT(off->declared_residual_share, 1.1 * off->residual_share);
