@@ -14,25 +14,13 @@
 #include "stagefit/common/units.h"
 #include "stagefit/kinematics/rigid_transform.h"
 #include "stagefit/model/effects.h"
+#include "stagefit/model/parameters.h"
 
 namespace stagefit::model {
 
 std::string_view EmbeddedMicroStationToml();  // generated from fitting/microstation.toml
 
 namespace {
-
-inline constexpr Dimension kMixedStiffness{2, 2, -4, -2};  // N/rad, between a translation and a rotation
-inline constexpr Dimension kMixedDamping{2, 2, -2, -2};
-
-Dimension StiffnessDimension(Dof a, Dof b) {
-  if (is_rotation(a) != is_rotation(b)) return kMixedStiffness;
-  return is_rotation(a) ? dim::kRotationalStiffness : dim::kTranslationalStiffness;
-}
-
-Dimension DampingDimension(Dof a, Dof b) {
-  if (is_rotation(a) != is_rotation(b)) return kMixedDamping;
-  return is_rotation(a) ? dim::kRotationalDamping : dim::kTranslationalDamping;
-}
 
 class Reader {
  public:

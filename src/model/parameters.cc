@@ -8,22 +8,18 @@
 #include "stagefit/model/effects.h"
 
 namespace stagefit::model {
-namespace {
 
-inline constexpr Dimension kMixedStiffness{2, 2, -4, -2};
-inline constexpr Dimension kMixedDamping{2, 2, -2, -2};
-
-Dimension StiffnessDim(Dof a, Dof b) {
-  if (is_rotation(a) != is_rotation(b)) return kMixedStiffness;
+Dimension StiffnessDimension(Dof a, Dof b) {
+  constexpr Dimension kMixed{2, 2, -4, -2};  // N/rad
+  if (is_rotation(a) != is_rotation(b)) return kMixed;
   return is_rotation(a) ? dim::kRotationalStiffness : dim::kTranslationalStiffness;
 }
 
-Dimension DampingDim(Dof a, Dof b) {
-  if (is_rotation(a) != is_rotation(b)) return kMixedDamping;
+Dimension DampingDimension(Dof a, Dof b) {
+  constexpr Dimension kMixed{2, 2, -2, -2};  // N s/rad
+  if (is_rotation(a) != is_rotation(b)) return kMixed;
   return is_rotation(a) ? dim::kRotationalDamping : dim::kTranslationalDamping;
 }
-
-}  // namespace
 
 std::vector<ParameterInfo> ListParameters(const ModelSpec& model) {
   const ModelSpec& spec = BaseOf(model);
@@ -43,8 +39,8 @@ std::vector<ParameterInfo> ListParameters(const ModelSpec& model) {
         p.kind = k.kind;
         p.joint = static_cast<int>(j);
         p.a = p.b = d;
-        p.dimension = k.kind == ParameterKind::kStiffness ? StiffnessDim(d, d)
-                      : k.kind == ParameterKind::kDamping ? DampingDim(d, d)
+        p.dimension = k.kind == ParameterKind::kStiffness ? StiffnessDimension(d, d)
+                      : k.kind == ParameterKind::kDamping ? DampingDimension(d, d)
                                                           : dim::kDimensionless;
         p.positive = k.kind == ParameterKind::kStiffness;
         list.push_back(p);
@@ -61,7 +57,7 @@ std::vector<ParameterInfo> ListParameters(const ModelSpec& model) {
         p.a = cs.a;
         p.b = cs.b;
         p.coupling = static_cast<int>(c);
-        p.dimension = stiffness ? StiffnessDim(cs.a, cs.b) : DampingDim(cs.a, cs.b);
+        p.dimension = stiffness ? StiffnessDimension(cs.a, cs.b) : DampingDimension(cs.a, cs.b);
         p.positive = false;  // a coupling term may have either sign
         list.push_back(p);
       }

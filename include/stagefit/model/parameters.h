@@ -41,6 +41,11 @@ struct ParameterInfo {
   bool positive = true;  ///< true when the value must stay > 0 (fits use a log parameterisation)
 };
 
+/// The dimension of a joint stiffness (damping) from DoF a to DoF b: N/m (N s/m) between translations,
+/// N m/rad (N m s/rad) between rotations, N/rad (N s/rad) between a translation and a rotation.
+Dimension StiffnessDimension(Dof a, Dof b);
+Dimension DampingDimension(Dof a, Dof b);
+
 /// Every parameter of `spec` (of its base when it has effects), joint by joint: stiffness, damping, loss
 /// factor, then couplings; then the body masses; then every effect's parameters in order.
 std::vector<ParameterInfo> ListParameters(const ModelSpec& spec);
