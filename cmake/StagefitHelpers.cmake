@@ -74,6 +74,22 @@ function(stagefit_test source)
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS unit COST ${ARG_COST})
 endfunction()
 
+# stagefit_fuzzer(name DEPS ...) in the test build: the fuzz program tests/fuzz/<name>.cc linked with
+# tests/fuzz/replay_main.cc instead of libFuzzer, and a CTest test FuzzReplay.<name> that runs it on the
+# program's seeds and stored crash inputs, v7.3 .mat inputs too (STAGEFIT_FUZZ_V73=1, as
+# `scripts/fuzz.sh --replay`). The fuzz build defines its own (cmake/StagefitFuzzers.cmake).
+function(stagefit_fuzzer name)
+  cmake_parse_arguments(ARG "" "" "DEPS" ${ARGN})
+  add_executable(${name}_replay ${CMAKE_CURRENT_SOURCE_DIR}/${name}.cc ${CMAKE_CURRENT_SOURCE_DIR}/replay_main.cc)
+  target_link_libraries(${name}_replay PRIVATE ${ARG_DEPS})
+  set(inputs ${CMAKE_CURRENT_SOURCE_DIR}/corpus/${name})
+  if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/regressions/${name})
+    list(APPEND inputs ${CMAKE_CURRENT_SOURCE_DIR}/regressions/${name})
+  endif()
+  add_test(NAME FuzzReplay.${name} COMMAND ${name}_replay ${inputs})
+  set_tests_properties(FuzzReplay.${name} PROPERTIES LABELS unit ENVIRONMENT STAGEFIT_FUZZ_V73=1)
+endfunction()
+
 # stagefit_layer_tests(layer [COST c] [DEPS ...]): every tests/<layer>/*_test.cc becomes a test program
 # linked with stagefit::<layer> (and DEPS); COST as stagefit_test's (its default when not given).
 function(stagefit_layer_tests layer)

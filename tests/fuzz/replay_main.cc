@@ -1,6 +1,6 @@
 // Replays stored inputs through one libFuzzer program's LLVMFuzzerTestOneInput without libFuzzer: the
 // seeds of corpus/<program>/ and the inputs that once crashed a reader, regressions/<program>/. Built
-// by the normal test build (tests/fuzz/replay.cmake) and run by CTest, so that every build with tests,
+// by the normal test build (stagefit_fuzzer() of cmake/StagefitHelpers.cmake) and run by CTest, so that every build with tests,
 // the sanitizer build included, keeps those inputs passing; exploring for new ones is scripts/fuzz.sh.
 //
 // Usage: <program>_replay FILE_OR_FOLDER...   (folders: every regular file below them, in name order)
@@ -39,11 +39,11 @@ int main(int argc, char** argv) {
   std::sort(inputs.begin(), inputs.end());
   for (const fs::path& path : inputs) {
     std::ifstream in(path, std::ios::binary);
-    const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (!in.good() && !in.eof()) {
-      std::fprintf(stderr, "replay: %s: cannot be read\n", path.c_str());
+    if (!in) {
+      std::fprintf(stderr, "replay: %s: cannot be opened\n", path.c_str());
       return 2;
     }
+    const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     try {
       LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
     } catch (const std::exception& e) {
