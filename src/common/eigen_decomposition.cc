@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 
 namespace stagefit {
 
@@ -35,6 +36,25 @@ std::optional<SymmetricEigenPairs> CalcGeneralizedSymmetricEigenPairs(const Eige
   Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(K, M);
   if (eig.info() != Eigen::Success) return std::nullopt;
   return SymmetricEigenPairs{eig.eigenvalues(), eig.eigenvectors()};
+}
+
+std::optional<SymmetricEigenPairs> CalcSymmetricEigenPairs(const Eigen::MatrixXd& A) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
+  if (eig.info() != Eigen::Success) return std::nullopt;
+  return SymmetricEigenPairs{eig.eigenvalues(), eig.eigenvectors()};
+}
+
+SingularValueDecomposition CalcSvd(const Eigen::MatrixXd& A, unsigned vectors) {
+  unsigned options = 0;
+  if (vectors & kSvdThinU) options |= Eigen::ComputeThinU;
+  if (vectors & kSvdThinV) options |= Eigen::ComputeThinV;
+  if (vectors & kSvdFullV) options |= Eigen::ComputeFullV;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, options);
+  SingularValueDecomposition result;
+  result.values = svd.singularValues();
+  if (vectors & kSvdThinU) result.U = svd.matrixU();
+  if (vectors & (kSvdThinV | kSvdFullV)) result.V = svd.matrixV();
+  return result;
 }
 
 }  // namespace stagefit

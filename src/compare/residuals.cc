@@ -2,8 +2,6 @@
 
 #include "stagefit/kinematics/rigid_transform.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,6 +10,7 @@
 #include <sstream>
 
 #include "stagefit/common/dof.h"
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/model/assembled_model.h"
 
@@ -949,10 +948,10 @@ const GaussRule& LaguerreRule() {
       J(k, k) = 2.0 * k + 1.0;
       if (k + 1 < n) J(k, k + 1) = J(k + 1, k) = k + 1.0;
     }
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(J);
+    const auto eig = CalcSymmetricEigenPairs(J);  // converges for this small tridiagonal matrix
     GaussRule r;
-    r.nodes = eig.eigenvalues();
-    r.weights = eig.eigenvectors().row(0).transpose().array().square();
+    r.nodes = eig->values;
+    r.weights = eig->vectors.row(0).transpose().array().square();
     return r;
   }();
   return rule;

@@ -4,7 +4,6 @@
 #include <glog/logging.h>
 #include <nlopt.h>
 
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <chrono>
@@ -14,6 +13,7 @@
 #include <random>
 #include <sstream>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
 
@@ -418,9 +418,9 @@ void AnalyseOptimum(const ceres::CostFunction& cost, const ParameterMap& map, co
     inverse_norm[i] = undetermined[i] ? 0.0 : 1.0 / column_norm[i];
   }
   const Eigen::MatrixXd Js = J * inverse_norm.asDiagonal();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinV);
-  const Eigen::VectorXd& s = svd.singularValues();
-  const Eigen::MatrixXd& V = svd.matrixV();
+  const SingularValueDecomposition svd = CalcSvd(Js, kSvdThinV);
+  const Eigen::VectorXd& s = svd.values;
+  const Eigen::MatrixXd& V = svd.V;
   const double s_max = s.size() > 0 ? s[0] : 0.0;
   Eigen::VectorXd inverse_s2 = Eigen::VectorXd::Zero(s.size());
   for (int k = 0; k < s.size(); ++k) {

@@ -1,6 +1,5 @@
 #include "stagefit/measurement/channel_checks.h"
 
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/measurement/projection.h"
 
@@ -35,8 +35,7 @@ struct Side {
 
 bool Observable(const Eigen::MatrixXd& J) {
   if (J.rows() < 6) return false;
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
-  const auto& s = svd.singularValues();
+  const Eigen::VectorXd s = CalcSvd(J).values;
   return s(5) > kObservabilityTolerance * s(0);
 }
 

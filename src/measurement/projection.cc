@@ -2,7 +2,6 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +9,7 @@
 #include <sstream>
 
 #include "stagefit/common/dof.h"
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::measurement {
@@ -123,8 +123,8 @@ void CheckObservable(const Eigen::MatrixXd& J, const std::string& what) {
   if (J.rows() < 6) {
     m << what << ": " << J.rows() << " channel(s) cannot observe 6 DoF";
   }
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
-  const Eigen::VectorXd& s = svd.singularValues();
+  const SingularValueDecomposition svd = CalcSvd(J, kSvdFullV);
+  const Eigen::VectorXd& s = svd.values;
   const double smax = s.size() > 0 ? s(0) : 0.0;
   std::vector<int> null_columns;
   for (int k = 0; k < 6; ++k) {
@@ -133,7 +133,7 @@ void CheckObservable(const Eigen::MatrixXd& J, const std::string& what) {
   }
   if (null_columns.empty()) return;
   Eigen::MatrixXd V0(6, null_columns.size());
-  for (std::size_t c = 0; c < null_columns.size(); ++c) V0.col(c) = svd.matrixV().col(null_columns[c]);
+  for (std::size_t c = 0; c < null_columns.size(); ++c) V0.col(c) = svd.V.col(null_columns[c]);
   const Eigen::VectorXd share = (V0 * V0.transpose()).diagonal();
   if (m.tellp() == 0) m << what;
   m << ": the geometry cannot observe ";
@@ -151,14 +151,14 @@ void CheckObservable(const Eigen::MatrixXd& J, const std::string& what) {
 }
 
 Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& J) {
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Eigen::VectorXd& s = svd.singularValues();
+  const SingularValueDecomposition svd = CalcSvd(J, kSvdThinU | kSvdThinV);
+  const Eigen::VectorXd& s = svd.values;
   Eigen::VectorXd inv = Eigen::VectorXd::Zero(s.size());
   const double smax = s.size() > 0 ? s(0) : 0.0;
   for (int i = 0; i < s.size(); ++i) {
     if (s(i) > kObservabilityTolerance * smax) inv(i) = 1.0 / s(i);
   }
-  return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
+  return svd.V * inv.asDiagonal() * svd.U.transpose();
 }
 
 FrfData ProjectToFrame(const FrfData& raw, const Eigen::Vector3d& default_p_WXo) {
@@ -469,8 +469,7 @@ Eigen::MatrixXd WithoutRow(const Eigen::MatrixXd& J, int skip) {
 
 bool Observes6(const Eigen::MatrixXd& J) {
   if (J.rows() < 6) return false;
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
-  const auto& s = svd.singularValues();
+  const Eigen::VectorXd s = CalcSvd(J).values;
   return s(5) > kObservabilityTolerance * s(0);
 }
 

@@ -1,7 +1,6 @@
 #include "stagefit/synthetic/synthetic_measurement.h"
 
 #include <Eigen/LU>
-#include <Eigen/SVD>
 #include <fftw3.h>
 
 #include <cmath>
@@ -9,6 +8,7 @@
 #include <map>
 #include <random>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/kinematics/rigid_transform.h"
 
@@ -109,11 +109,11 @@ BruteForceSystem Build(const model::ModelSpec& spec) {
   } else {
     Eigen::MatrixXd A(constraints.size(), n);
     for (size_t r = 0; r < constraints.size(); ++r) A.row(r) = constraints[r];
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
-    const double tol = 1e-10 * svd.singularValues()(0);
+    const SingularValueDecomposition svd = CalcSvd(A, kSvdFullV);
+    const double tol = 1e-10 * svd.values(0);
     int rank = 0;
-    for (int i = 0; i < svd.singularValues().size(); ++i) rank += svd.singularValues()(i) > tol;
-    s.N = svd.matrixV().rightCols(n - rank);
+    for (int i = 0; i < svd.values.size(); ++i) rank += svd.values(i) > tol;
+    s.N = svd.V.rightCols(n - rank);
   }
   s.M = s.N.transpose() * M * s.N;
   s.C = s.N.transpose() * (C + G) * s.N;

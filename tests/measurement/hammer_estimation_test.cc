@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 
 namespace stagefit::measurement {
@@ -92,9 +93,10 @@ double ForceAt(const std::vector<HalfSine>& pulses, double t) {
 // + W) / (l^2 + W^2).
 Eigen::VectorXd Respond(const LinearSystem& s, const std::vector<HalfSine>& pulses, double fs,
                         int ns) {
-  Eigen::EigenSolver<Eigen::MatrixXd> eig(s.A);
-  const Eigen::MatrixXcd V = eig.eigenvectors();
-  const Eigen::VectorXcd lambda = eig.eigenvalues();
+  const auto eig = CalcEigenPairs(s.A);
+  EXPECT_TRUE(eig);
+  const Eigen::MatrixXcd V = eig->vectors;
+  const Eigen::VectorXcd lambda = eig->values;
   const Eigen::VectorXcd b = V.partialPivLu().solve(s.B.cast<Complex>());
   const Eigen::RowVectorXcd c = s.C.row(0).cast<Complex>() * V;
   Eigen::VectorXd y(ns);

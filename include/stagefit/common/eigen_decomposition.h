@@ -1,9 +1,10 @@
 #pragma once
-// Dense eigen-decompositions, instantiated in one translation unit.
+// Dense eigen- and singular value decompositions, instantiated in one translation unit.
 //
-// Eigen's general eigen-solvers (real and complex Schur) take tens of seconds each to compile; the
-// model, response and simulation layers all need them. They are compiled here, once, and called
-// through these functions.
+// Eigen's general eigen-solvers (real and complex Schur) take 10-20 s each to compile, its symmetric
+// eigen-solver and its Jacobi SVD 7-9 s (g++ 12, -O3): every file that named one paid that again. The
+// model, response, measurement, fit and simulation layers and their tests call them through these
+// functions, compiled here once.
 
 #include <Eigen/Core>
 
@@ -34,5 +35,19 @@ struct SymmetricEigenPairs {
 };
 std::optional<SymmetricEigenPairs> CalcGeneralizedSymmetricEigenPairs(const Eigen::MatrixXd& K,
                                                                       const Eigen::MatrixXd& M);
+
+/// Symmetric A (its lower triangle is read): ascending eigenvalues and orthonormal eigenvectors.
+/// std::nullopt when the solver does not converge.
+std::optional<SymmetricEigenPairs> CalcSymmetricEigenPairs(const Eigen::MatrixXd& A);
+
+/// A = U diag(values) V' by Eigen's two-sided Jacobi SVD: min(m, n) singular values, descending; U and V
+/// only as asked for (`vectors`: an or of SvdVectors), thin (min(m, n) columns) or full (V: n columns).
+enum SvdVectors : unsigned { kSvdValuesOnly = 0, kSvdThinU = 1, kSvdThinV = 2, kSvdFullV = 4 };
+struct SingularValueDecomposition {
+  Eigen::VectorXd values;
+  Eigen::MatrixXd U;
+  Eigen::MatrixXd V;
+};
+SingularValueDecomposition CalcSvd(const Eigen::MatrixXd& A, unsigned vectors = kSvdValuesOnly);
 
 }  // namespace stagefit
