@@ -8,11 +8,13 @@
 #include <filesystem>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "stagefit/compare/residuals.h"
 #include "stagefit/measurement/projection.h"
 #include "stagefit/model/effects.h"
 #include "stagefit/model/model_file.h"
+#include "stagefit/model/parameters.h"
 #include "stagefit/synthetic/outside_catalogue.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
@@ -116,8 +118,8 @@ TEST(Loop, ACandidateTheBentBaselineTrapsIsFoundFromTheModelAsGiven) {
 // An accelerometer turned by 16 degrees (seed 7006 of eval_loop: a2x, 600 Hz, 477 frequencies),
 // compared in compliance space: the stiffness fit absorbs it at the noise floor, so no round runs. The
 // turned-channel step sees a2x 15.7 degrees off as the other channels' rigid motion gives it and adds
-// the correction held there; the model stays at the floor and comes within 0.5 % of the noise-free
-// truth. (Effect-free data get no such step: AddsNothingToEffectFreeData.)
+// the correction held there (and in every later fit); the model stays at the floor and comes within
+// 0.5 % of the noise-free truth. (Effect-free data get no such step: AddsNothingToEffectFreeData.)
 TEST(Loop, AddsATurnedChannelTheStiffnessesAbsorbed) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   synthetic::HiddenEffectCase c;
@@ -130,6 +132,14 @@ TEST(Loop, AddsATurnedChannelTheStiffnessesAbsorbed) {
   const double rz = summary.final_model.effects.back().parameters.at("rz");
   EXPECT_NEAR(std::abs(rz) * 180 / M_PI, 16.0, 1.0);
   EXPECT_LT(DistanceToTruth(summary.final_model, c), 0.005);
+  // Held where the data put the channel, for this refit and every later one: the turn at the estimate,
+  // no offset, and none of its parameters among those a fit of the model with its effects frees.
+  const model::Effect& correction = summary.final_model.effects.back();
+  EXPECT_EQ(correction.held, (std::vector<std::string>{"dx", "dy", "dz", "rx", "ry", "rz"}));
+  for (const char* p : {"dx", "dy", "dz"}) EXPECT_EQ(correction.parameters.at(p), 0.0) << p;
+  for (const auto& p : model::MatchParameters(summary.final_model, model::WithEffectParameters({"*.k.*"}, summary.final_model))) {
+    EXPECT_NE(p.name.rfind("sensor-geometry@", 0), 0u) << p.name;
+  }
 }
 
 // An accelerometer turned by 14 degrees (seed 15008 of eval_loop: a3x, 150 Hz, 835 frequencies): the

@@ -47,8 +47,8 @@ struct LoopOptions {
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
   /// correction leaves the others consistent (measurement::FindTurnedChannel), is added as a
-  /// sensor-geometry correction held at that turn,
-  /// and the model refitted; kept unless the error rises by more than `turned_channel_max_rise`. In
+  /// sensor-geometry correction held at that turn with no offset, in that refit and every later one
+  /// (model::Effect::held), and the model refitted; kept unless the error rises by more than `turned_channel_max_rise`. In
   /// compliance space a turned accelerometer is often absorbed by the stiffnesses at the noise floor
   /// (15 degrees: 1.03x the floor, 2.8 % off the noise-free truth), while its direction estimate stands
   /// out (15.3 degrees; sound channels of six effect-free cases at most 0.8). With effects in the data,
