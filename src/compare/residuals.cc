@@ -948,7 +948,8 @@ const GaussRule& LaguerreRule() {
       J(k, k) = 2.0 * k + 1.0;
       if (k + 1 < n) J(k, k + 1) = J(k + 1, k) = k + 1.0;
     }
-    const auto eig = CalcSymmetricEigenPairs(J);  // converges for this small tridiagonal matrix
+    const auto eig = CalcSymmetricEigenPairs(J);
+    STAGEFIT_ASSERT(eig.has_value(), "the eigen-problem of the Gauss-Laguerre rule did not converge");
     GaussRule r;
     r.nodes = eig->values;
     r.weights = eig->vectors.row(0).transpose().array().square();
