@@ -120,7 +120,7 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
   effect.location = turned->name;
   effect.parameters = {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.0}, {"rx", (*euler)(0)}, {"ry", (*euler)(1)}, {"rz", (*euler)(2)}};
   // Held where the data put the channel, in this refit and every later one (model::Effect::held): the
-  // turn at the estimate (within 0.3-0.6 degrees of the truth on the evaluation's cases), no offset, as
+  // turn at the estimate (0.2-0.5 degrees from the truth on the cases of docs/diagnose.md), no offset, as
   // the diagnosis holds its own such candidates. Freed, the correction is poorly determined in
   // compliance space, and the refits of the rounds carried it off while effects were added beside it
   // (61013: a2z corrected at 11.7 degrees, freed to dx = -5 cm and rx = 21 degrees beside a servo; 65019:
