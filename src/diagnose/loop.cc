@@ -126,7 +126,7 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
   // (61013: a2z corrected at 11.7 degrees, freed to dx = -5 cm and rx = 21 degrees beside a servo; 65019:
   // a1z corrected at 11.8 degrees, freed to ry = 0.6 rad, its bound); the hold at bounds after the rounds
   // (HoldParametersAtBounds) came after the rounds had built on the drifted turn.
-  effect.held = {"dx", "dy", "dz", "rx", "ry", "rz"};
+  for (const auto& p : model::FindEffectDefinition(effect.name).parameters) model::HoldEffectParameter(&effect, p.name);
   model::ModelSpec with = *current;
   try {
     model::ApplyEffect(with, effect);
@@ -679,9 +679,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       // a3z turned 17 degrees, stayed beside a3z's correction held at that turn, 0.016 off the truth).
       // The effect of the first parameter held here ("<effect>@<location>.<parameter>"): not any effect
       // with a hold (a turned channel's correction is held from the start).
-      const std::string held_key = held.front().substr(0, held.front().rfind('.'));
       const auto held_effect = std::find_if(current.effects.begin() + static_cast<long>(spec.effects.size()), current.effects.end(),
-                                            [&](const model::Effect& e) { return Key(e) == held_key; });
+                                            [&](const model::Effect& e) { return held.front().rfind(Key(e) + ".", 0) == 0; });
       if (held_effect != current.effects.end()) drop_unneeded(model::Effect(*held_effect));
       finish();
       if (!KeepModelAfterHold(before.history.back().error, summary.history.back().error,

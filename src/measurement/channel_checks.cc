@@ -1,6 +1,5 @@
 #include "stagefit/measurement/channel_checks.h"
 
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,7 +9,6 @@
 #include <sstream>
 #include <tuple>
 
-#include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
 #include "stagefit/measurement/projection.h"
 
@@ -32,12 +30,6 @@ struct Side {
   std::vector<Eigen::MatrixXd> noise;     // Nf, C x O: noise variance per point
   std::vector<Eigen::MatrixXd> coherence; // Nf, C x O (empty: none)
 };
-
-bool Observable(const Eigen::MatrixXd& J) {
-  if (J.rows() < 6) return false;
-  const Eigen::VectorXd s = CalcSvd(J).values;
-  return s(5) > kObservabilityTolerance * s(0);
-}
 
 Eigen::MatrixXd ResidualProjector(const Eigen::MatrixXd& J) {
   return Eigen::MatrixXd::Identity(J.rows(), J.rows()) - J * PseudoInverse(J);
@@ -89,7 +81,7 @@ struct Checker {
       if (i != c) rows.push_back(i);
     Eigen::MatrixXd Jo(rows.size(), 6);
     for (std::size_t i = 0; i < rows.size(); ++i) Jo.row(i) = J.row(rows[i]);
-    if (!Observable(Jo)) return false;
+    if (!Observes6(Jo)) return false;
     const Eigen::RowVectorXd w = J.row(c) * PseudoInverse(Jo);
     pred.clear();
     for (const auto& mk : s.m) {
@@ -206,7 +198,7 @@ struct Checker {
     for (int round = 0; round < opt.max_findings_per_side; ++round) {
       const int C = static_cast<int>(s.names.size());
       const Eigen::MatrixXd J = s.is_input ? CalcImpactJacobian(s.geometry, origin) : CalcSensorJacobian(s.geometry, origin);
-      if (!Observable(J) || C <= 6) {
+      if (!Observes6(J) || C <= 6) {
         notes.push_back("the remaining " + what + "s cannot check each other (fewer than 7, or not observing six DoF)");
         return;
       }
@@ -481,7 +473,7 @@ ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WX
     const auto& idx = by_body[body];
     std::vector<ChannelGeometry> g;
     for (int i : idx) g.push_back(raw.outputs[i]);
-    if (idx.size() < 7 || !Observable(CalcSensorJacobian(g, ch.origin))) {
+    if (idx.size() < 7 || !Observes6(CalcSensorJacobian(g, ch.origin))) {
       notes.push_back("sensors on " + body + " skipped (fewer than 7, or not observing its six DoF)");
       continue;
     }
@@ -489,7 +481,7 @@ ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WX
   }
   bool inputs_ok = raw.num_inputs() >= 7;
   for (const auto& c : raw.inputs) inputs_ok = inputs_ok && c.has_geometry() && c.body == raw.inputs[0].body;
-  if (inputs_ok) inputs_ok = Observable(CalcImpactJacobian(raw.inputs, ch.origin));
+  if (inputs_ok) inputs_ok = Observes6(CalcImpactJacobian(raw.inputs, ch.origin));
   if (inputs_ok) {
     std::vector<int> idx;
     for (int j = 0; j < raw.num_inputs(); ++j) idx.push_back(j);

@@ -467,13 +467,13 @@ Eigen::MatrixXd WithoutRow(const Eigen::MatrixXd& J, int skip) {
   return out;
 }
 
+}  // namespace
+
 bool Observes6(const Eigen::MatrixXd& J) {
   if (J.rows() < 6) return false;
   const Eigen::VectorXd s = CalcSvd(J).values;
   return s(5) > kObservabilityTolerance * s(0);
 }
-
-}  // namespace
 
 std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
                                                                 double fmin_hz, double fmax_hz) {

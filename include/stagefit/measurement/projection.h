@@ -55,6 +55,9 @@ Eigen::MatrixXd CalcImpactJacobian(const std::vector<ChannelGeometry>& channels,
 /// "Dx (1.00), Dy (1.00), Rz (1.00)". `what` names the data and side (e.g. "'m.mat': sensors").
 void CheckObservable(const Eigen::MatrixXd& J, const std::string& what);
 
+/// True when J (N x 6) observes all six DoF by that rule, without a message.
+bool Observes6(const Eigen::MatrixXd& J);
+
 /// Moore-Penrose pseudo-inverse by the SVD (singular values below kObservabilityTolerance *
 /// sigma_max are dropped).
 Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& J);
