@@ -537,10 +537,12 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
 }
 
 std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
-                                                          double min_angle_rad, double fmin_hz, double fmax_hz) {
+                                                          double min_angle_rad, double fmin_hz, double fmax_hz,
+                                                          std::vector<ChannelDirectionEstimate>* rivals) {
+  if (rivals) rivals->clear();
   const std::vector<ChannelDirectionEstimate> estimates = EstimateChannelDirections(raw, default_p_WXo, fmin_hz, fmax_hz);
-  std::optional<ChannelDirectionEstimate> best;    // of the corrections that leave the others consistent
-  std::optional<ChannelDirectionEstimate> strong;  // else: of the channels the data put clearly off
+  std::vector<ChannelDirectionEstimate> consistent;  // the corrections that leave the others consistent
+  std::optional<ChannelDirectionEstimate> strong;    // else: of the channels the data put clearly off
   double best_strong_others = std::numeric_limits<double>::infinity();
   for (const auto& e : estimates) {
     if (!e.estimable || !(e.angle_rad > min_angle_rad)) continue;
@@ -555,13 +557,21 @@ std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, co
       if (o.estimable && !(o.name == e.name && o.is_impact == e.is_impact)) others = std::max(others, o.angle_rad);
     }
     if (others <= min_angle_rad) {
-      if (!best || e.residual_share < best->residual_share) best = e;
+      consistent.push_back(e);
     } else if (e.declared_residual_share >= 2 * e.residual_share && others < best_strong_others) {
       strong = e;
       best_strong_others = others;
     }
   }
-  return best ? best : strong;
+  if (consistent.empty()) return strong;
+  std::stable_sort(consistent.begin(), consistent.end(),
+            [](const auto& a, const auto& b) { return a.residual_share < b.residual_share; });
+  if (rivals) {
+    for (size_t k = 1; k < consistent.size(); ++k) {
+      if (consistent[k].residual_share < kRivalResidualRatio * consistent[0].residual_share) rivals->push_back(consistent[k]);
+    }
+  }
+  return consistent[0];
 }
 
 }  // namespace stagefit::measurement

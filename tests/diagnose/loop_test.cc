@@ -217,10 +217,10 @@ TEST(Loop, NamesTheRawChannelsAPlateModeLeavesAboveTheFloor) {
 }
 
 // Seed 63012 of eval_loop: a 7.6 kg payload 61 mm above the hexapod's centre of mass and a 0.9 ms delay
-// (150 Hz, 368 frequencies). The loop ends at the floor with both; the payload's lateral offset, which
-// the compliance space hardly sees, put a4y at 1.8x the floor in raw space while the noise-free truth's
-// channels are within 1.06x. Refitted in raw space, the model fits a4y too: no channel is named, and
-// the bench is not blamed for what the model left.
+// (150 Hz, 368 frequencies). The loop ends at the floor with two effects and names no raw channel. Where
+// its final model's payload sat off-centre (the build machines before: a4y at 1.8x the floor in raw
+// space, cleared by the raw refit) or its extra body held the mass (an AMD build, -march=native: no
+// channel stands out), it depends on the last bits of the fits; the mechanism is tested on its own below.
 TEST(Loop, NamesNoRawChannelTheModelFitsInRawSpace) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 63012, synthetic::EvalLoopCaseOptions(2, 150.0, 368));
@@ -228,16 +228,52 @@ TEST(Loop, NamesNoRawChannelTheModelFitsInRawSpace) {
   std::cout << summary.HistoryTable();
   ASSERT_TRUE(summary.confirmed);
   ASSERT_EQ(summary.effects_added.size(), 2u);
-  // The final model as the loop leaves it does put a4y above the others in raw space.
-  const std::vector<ChannelError> unrefitted = WorstChannels(summary.final_model, c.measurement, {}, 6);
-  ASSERT_FALSE(unrefitted.empty());
-  EXPECT_EQ(unrefitted[0].name, "a4y");
-  EXPECT_GE(unrefitted[0].times_floor, kChannelStandsOut);
-  EXPECT_GE(unrefitted[0].times_median, kChannelStandsOut);
   ASSERT_FALSE(summary.final_channels.empty());
   EXPECT_LT(summary.final_channels[0].times_floor, kChannelStandsOut) << summary.final_channels[0].name;
   EXPECT_TRUE(ConclusionChannels(summary).empty());
   EXPECT_EQ(summary.conclusion.find("But in raw space"), std::string::npos) << summary.conclusion;
+}
+
+// The same data with a model at the floor in compliance space whose payload sits 20 mm off-centre in x
+// (the truth's stiffnesses, the delay, the payload's mass and height right): the compliance space
+// hardly sees the offset (1.00x the floor), the raw channels do (a2y about 2.0x the floor and the
+// median channel). Refitted in raw space with its parameters and its effects', the model fits a2y too,
+// and the conclusion names no channel; without the refit it would name a2y.
+TEST(Loop, RawRefitClearsAChannelTheModelCanFit) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 63012, synthetic::EvalLoopCaseOptions(2, 150.0, 368));
+  model::ModelSpec model = nominal;
+  for (auto& joint : model.joints) {
+    for (const auto& truth : c.truth.joints) {
+      if (truth.name == joint.name) joint = truth;
+    }
+  }
+  model::ApplyEffect(model, model::ParseEffect("delay@acquisition:tau=0.0009", model));
+  model::ApplyEffect(model, model::ParseEffect("payload@hexapod:mass=7.6,z=0.061,x=0.02", model));
+  const LoopOptions options = Options({"payload"});
+  const auto comparison = compare::Comparison::Create(model, c.measurement, options.diagnose.comparison);
+  const compare::NoiseFloor floor = comparison.CalcNoiseFloor();
+  ASSERT_TRUE(floor.known);
+  ASSERT_LE(comparison.Error(model), 1.06 * floor.floor);
+
+  const std::vector<ChannelError> before = WorstChannels(model, c.measurement, options.diagnose.comparison, 6);
+  ASSERT_FALSE(before.empty());
+  EXPECT_EQ(before[0].name, "a2y");
+  EXPECT_GE(before[0].times_floor, kChannelStandsOut);
+  EXPECT_GE(before[0].times_median, kChannelStandsOut);
+  const std::vector<ChannelError> after = ChannelsAfterRawRefit(model, c.measurement, options, before);
+  ASSERT_EQ(after.size(), before.size());
+  EXPECT_LT(after[0].times_floor, kChannelStandsOut) << after[0].name;
+
+  LoopSummary summary;
+  summary.noise_floor = floor;
+  summary.history.push_back({"as given", "", comparison.Error(model)});
+  summary.confirmed = true;
+  summary.final_channels = before;
+  ASSERT_FALSE(ConclusionChannels(summary).empty());
+  EXPECT_EQ(ConclusionChannels(summary)[0].name, "a2y");
+  summary.final_channels = after;
+  EXPECT_TRUE(ConclusionChannels(summary).empty());
 }
 
 // The diagnosis fits the model again before it tries any effect (its baseline, and its step 3 from the

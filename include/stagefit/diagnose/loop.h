@@ -47,7 +47,9 @@ struct LoopOptions {
   /// rigid-body motion gives it (measurement::EstimateChannelDirections, no model involved), is more
   /// than this many degrees off the declared one, and of the channels that far off the one whose
   /// correction leaves the others consistent (measurement::FindTurnedChannel), is added as a
-  /// sensor-geometry correction held at that turn with no offset, in that refit and every later one
+  /// sensor-geometry correction held at that turn with no offset (the history names with it any channel
+  /// whose correction fits the rigid motion nearly as well, measurement::kRivalResidualRatio, as the
+  /// one to check next on the bench), in that refit and every later one
   /// (model::Effect::held), and the model refitted; kept unless the error rises by more than `turned_channel_max_rise`. In
   /// compliance space a turned accelerometer is often absorbed by the stiffnesses at the noise floor
   /// (15 degrees: 1.03x the floor, 2.8 % off the noise-free truth), while its direction estimate stands
@@ -114,6 +116,14 @@ struct LoopSummary {
   /// The error history as a table (step, action, error, x floor) with the stop reason.
   std::string HistoryTable() const;
 };
+
+/// The raw channels of `model` refitted in raw space (its parameters and its effects', on the band and
+/// with the weights of `options`' comparison), worst first and as many as `channels`, when that lowers
+/// its raw error; `channels` (WorstChannels() of `model`) otherwise, and when the refit fails. RunLoop()
+/// weighs the channels of a final model at the floor so, when one stands out: a channel the model can
+/// fit there is not blamed on the bench.
+std::vector<ChannelError> ChannelsAfterRawRefit(const model::ModelSpec& model, const measurement::FrfData& measurement,
+                                                const LoopOptions& options, const std::vector<ChannelError>& channels);
 
 /// The raw channels LoopSummary::conclusion names (of `summary`'s final_channels, its floor, history
 /// and implausible effects): above the floor those that stand out (StandingOut()); at the floor, with

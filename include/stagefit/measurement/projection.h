@@ -190,10 +190,23 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
                                                                 double fmin_hz = 0.0,
                                                                 double fmax_hz = std::numeric_limits<double>::infinity());
 
+/// FindTurnedChannel()'s rivals: the other corrections that leave the other channels consistent with
+/// less than this many times the named channel's residual_share. On 69013 of eval_loop (a2z turned 15
+/// degrees beside a hexapod coupling, 600 Hz) a2z and a4z left 0.00602 and 0.00584 (1.03x): the top
+/// plate moves almost as one in its plane there, and a horizontal share of either vertical sensor
+/// explains the error alike; a4z was named, the wrong one. On 1200 further seeds of that generator
+/// (200000-200599 and 201000-201599, 281 with a turned channel) 23 named channels had a rival within 2x (1.02-1.85x, all
+/// vertical sensors, all in 600 Hz bands), and the least residual was right in each; singled out, the
+/// next rival left 3.0x (60040), 5.6x (65011) and 6.7x (65019). Factor 2 as in the declared-residual
+/// rule below.
+inline constexpr double kRivalResidualRatio = 2.0;
+
 /// The channel most likely turned, of those EstimateChannelDirections() puts more than `min_angle_rad`
 /// off their declared direction. Each is corrected in turn (its declared direction replaced by its
 /// estimate) and the others estimated again: of the corrections that leave every other channel within
-/// `min_angle_rad`, the channel with the least residual_share. A turned channel corrupts the motion the
+/// `min_angle_rad`, the channel with the least residual_share; `rivals` (when given) gets the others of
+/// those whose residual_share is below kRivalResidualRatio times its own (least first): the channels
+/// the rigid motion hardly tells from it. A turned channel corrupts the motion the
 /// channels sharing its DoF see, so they look turned too, by less, and can have as little residual: on
 /// seed 45020 of eval_loop a1x was turned 23 degrees and a4x estimated 10.4 degrees off with residual
 /// share 0.0020 against a1x's 0.0021; corrected, a1x leaves the others near their declared directions,
@@ -211,6 +224,7 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
 /// channel is that far off or none is named so. Throws as EstimateChannelDirections().
 std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, const Eigen::Vector3d& default_p_WXo,
                                                           double min_angle_rad, double fmin_hz = 0.0,
-                                                          double fmax_hz = std::numeric_limits<double>::infinity());
+                                                          double fmax_hz = std::numeric_limits<double>::infinity(),
+                                                          std::vector<ChannelDirectionEstimate>* rivals = nullptr);
 
 }  // namespace stagefit::measurement
