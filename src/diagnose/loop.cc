@@ -146,11 +146,9 @@ bool AddTurnedChannel(const measurement::FrfData& measurement,
   // so the two errors compare): corrections of channels truly turned 14-20 degrees raised it by 0.8-2.1 %
   // (seeds 13012, 15008, 15011), within the floor's spread. Not kept, the turn is still said: the
   // channel is worth checking on the bench.
-  // A rival the rigid motion hardly tells from the channel is named with it, for the bench: on 24 such
-  // cases of eval_loop's generator the named channel was the turned one in 23 (69013: a4z named, a2z
-  // turned; measurement::kRivalResidualRatio). A refit of the model with each correction, to choose,
-  // was wrong in 4 of the 5 cases where it disagreed with the residual; leaving the choice to the
-  // diagnosis mended 69013 and lost 200397 (docs/diagnose.md, "A turned channel's rival").
+  // A rival the rigid motion hardly tells from the channel (measurement::kRivalResidualRatio) is named
+  // with it, for the bench; the pick stays the least residual, which choosing by the model's refit or
+  // leaving to the diagnosis did not better (docs/diagnose.md, "A turned channel's rival").
   std::string rival_text;
   for (const auto& r : rivals) {
     char text[80];

@@ -564,8 +564,9 @@ std::optional<ChannelDirectionEstimate> FindTurnedChannel(const FrfData& raw, co
     }
   }
   if (consistent.empty()) return strong;
+  // Stable: of equal residuals the first channel is named, as before there were rivals.
   std::stable_sort(consistent.begin(), consistent.end(),
-            [](const auto& a, const auto& b) { return a.residual_share < b.residual_share; });
+                   [](const auto& a, const auto& b) { return a.residual_share < b.residual_share; });
   if (rivals) {
     for (size_t k = 1; k < consistent.size(); ++k) {
       if (consistent[k].residual_share < kRivalResidualRatio * consistent[0].residual_share) rivals->push_back(consistent[k]);

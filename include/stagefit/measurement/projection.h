@@ -195,10 +195,10 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
 /// degrees beside a hexapod coupling, 600 Hz) a2z and a4z left 0.00602 and 0.00584 (1.03x): the top
 /// plate moves almost as one in its plane there, and a horizontal share of either vertical sensor
 /// explains the error alike; a4z was named, the wrong one. On 1200 further seeds of that generator
-/// (200000-200599 and 201000-201599, 281 with a turned channel) 23 named channels had a rival within 2x (1.02-1.85x, all
-/// vertical sensors, all in 600 Hz bands), and the least residual was right in each; singled out, the
-/// next rival left 3.0x (60040), 5.6x (65011) and 6.7x (65019). Factor 2 as in the declared-residual
-/// rule below.
+/// (200000-200599 and 201000-201599, 281 with a turned channel) 23 named channels had a rival within
+/// 2x (1.02-1.85x, all vertical sensors, all in 600 Hz bands), and the least residual was right in
+/// each; singled out, the next rival left 3.0x (60040), 5.6x (65011) and 6.7x (65019). Factor 2 as in
+/// the declared-residual rule below.
 inline constexpr double kRivalResidualRatio = 2.0;
 
 /// The channel most likely turned, of those EstimateChannelDirections() puts more than `min_angle_rad`
