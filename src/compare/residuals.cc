@@ -244,7 +244,10 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         } else {
           var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
         }
-        if (!projected) c.raw_noise_var_.push_back(var_L);
+        if (!projected) {
+          c.raw_noise_var_.push_back(var_L);
+          c.raw_noise_var_floor_.push_back(var_L_floor);
+        }
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
             const double sigma = std::sqrt(var_X(a, b));
@@ -551,6 +554,21 @@ std::shared_ptr<const Comparison::MeasuredSide> Comparison::MeasuredSideFor(cons
     sum_w2 += side->weights[p] * side->weights[p];
   }
   side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
+  // Each point's SNR for the floor, as Create() has it for the declared projection: the re-projected
+  // |H_X| over the floor's raw noise propagated through this projection.
+  if (raw_noise_var_floor_.size() == raw_noise_var_.size()) {
+    const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
+    std::vector<Eigen::MatrixXd> sigma(raw_noise_var_floor_.size());
+    for (size_t k = 0; k < sigma.size(); ++k) sigma[k] = (P2 * raw_noise_var_floor_[k] * Q2).cwiseSqrt();
+    side->floor_snr.resize(points_.size());
+    for (size_t p = 0; p < points_.size(); ++p) {
+      const Point& pt = points_[p];
+      const ElementIndex idx = used_elements_[pt.element];
+      const double s = sigma[pt.frequency](idx.output, idx.input);
+      side->floor_snr[p] = s == 0.0 ? std::numeric_limits<double>::infinity()
+                                    : std::abs(side->reprojected[pt.frequency](idx.output, idx.input)) / s;
+    }
+  }
   if (cache) {
     std::lock_guard<std::mutex> lock(cache->mutex);
     auto& entries = cache->entries;
@@ -637,6 +655,7 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   c.snr_ = subset(snr_);
   c.raw_measured_ = subset(raw_measured_);
   c.raw_noise_var_ = subset(raw_noise_var_);
+  c.raw_noise_var_floor_ = subset(raw_noise_var_floor_);
   c.points_.clear();
   double sum_w2 = 0.0;
   for (const Point& p : points_) {
@@ -1009,15 +1028,19 @@ LogErrorMoments ExpectedLogErrorMoments(double s) {
   return {interp(table[j].m2, table[j + 1].m2), interp(table[j].m4, table[j + 1].m4)};
 }
 
-NoiseFloor Comparison::CalcNoiseFloor() const {
+namespace {
+
+/// The NoiseFloor (header of Comparison::CalcNoiseFloor()) of `count` points with weights `weight(p)`
+/// and uncapped SNRs `snr(p)`.
+template <typename Weight, typename Snr>
+NoiseFloor NoiseFloorOf(size_t count, const Weight& weight, const Snr& snr) {
   NoiseFloor out;
-  if (!weights_are_snr_) return out;
   double sum_w2 = 0.0, sum_m2 = 0.0, sum_var = 0.0;
-  for (const Point& p : points_) {
-    const double w2 = p.weight * p.weight;
+  for (size_t p = 0; p < count; ++p) {
+    const double w2 = weight(p) * weight(p);
     sum_w2 += w2;
-    if (!std::isfinite(p.snr)) continue;  // a noise-free point adds nothing
-    const LogErrorMoments m = ExpectedLogErrorMoments(1.0 / p.snr);
+    if (!std::isfinite(snr(p)) || w2 == 0.0) continue;  // a noise-free or uncounted point adds nothing
+    const LogErrorMoments m = ExpectedLogErrorMoments(1.0 / snr(p));
     sum_m2 += w2 * m.m2;
     sum_var += w2 * w2 * std::max(0.0, m.m4 - m.m2 * m.m2);
     ++out.num_points;
@@ -1027,6 +1050,22 @@ NoiseFloor Comparison::CalcNoiseFloor() const {
   out.floor = std::sqrt(sum_m2 / sum_w2);
   out.sd = out.floor > 0.0 ? std::sqrt(sum_var) / sum_w2 / (2.0 * out.floor) : 0.0;
   return out;
+}
+
+}  // namespace
+
+NoiseFloor Comparison::CalcNoiseFloor() const {
+  if (!weights_are_snr_) return {};
+  return NoiseFloorOf(
+      points_.size(), [&](size_t p) { return points_[p].weight; }, [&](size_t p) { return points_[p].snr; });
+}
+
+NoiseFloor Comparison::CalcNoiseFloor(const model::ModelSpec& spec) const {
+  if (!weights_are_snr_) return {};
+  const std::shared_ptr<const MeasuredSide> side = MeasuredSideFor(spec);
+  if (side->floor_snr.empty()) return CalcNoiseFloor();  // not re-projected, or weighed as declared
+  return NoiseFloorOf(
+      points_.size(), [&](size_t p) { return side->weights[p]; }, [&](size_t p) { return side->floor_snr[p]; });
 }
 
 std::string NoiseFloorLine(double error, const NoiseFloor& floor) {

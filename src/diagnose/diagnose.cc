@@ -344,6 +344,15 @@ std::vector<ParameterAtBound> ParametersAtBounds(const model::ModelSpec& baselin
 
 namespace {
 
+/// Candidate::floor_ratio of `effect` fitted as `with` against `baseline` on `comparison`: 1 for an
+/// effect of the model's side, or when a floor is unknown.
+double FloorRatio(const compare::Comparison& comparison, const model::ModelSpec& baseline, const model::ModelSpec& with,
+                  const model::Effect& effect) {
+  if (!model::FindEffectDefinition(effect.name).measured_side_only) return 1.0;
+  const compare::NoiseFloor base = comparison.CalcNoiseFloor(baseline), own = comparison.CalcNoiseFloor(with);
+  return base.known && own.known && base.floor > 0 && own.floor > 0 ? own.floor / base.floor : 1.0;
+}
+
 /// The centre (geometric mean of its edges) of the band where `model`'s error against `comparison` is
 /// largest; nullopt without bands. A missing lightly damped local mode leaves its error around its
 /// frequency.
@@ -363,7 +372,7 @@ void SortByBic(std::vector<Candidate>* candidates) {
 void MergeBetter(const std::vector<Candidate>& fitted, std::vector<Candidate>* ranked) {
   for (const auto& r : fitted) {
     for (auto& c : *ranked) {
-      if (SameCandidate(r, c) && r.error_after <= c.error_after) c = r;
+      if (SameCandidate(r, c) && JudgedError(r) <= JudgedError(c)) c = r;
     }
   }
   SortByBic(ranked);
@@ -729,14 +738,16 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   const Scale search_scale{static_cast<double>(search.num_residuals()), search.Error(summary.baseline)};
   auto rescore = [&](Candidate* c, const Scale& scale) {
     const double n = scale.n;
-    c->delta_bic = n * std::log(std::pow(c->error_after, 2) / std::pow(scale.error_baseline, 2)) + c->num_parameters * std::log(n);
-    c->helps = c->delta_bic < 0 && c->error_after < (1 - options.min_relative_improvement) * scale.error_baseline;
+    const double error = JudgedError(*c);
+    c->delta_bic = n * std::log(std::pow(error, 2) / std::pow(scale.error_baseline, 2)) + c->num_parameters * std::log(n);
+    c->helps = c->delta_bic < 0 && error < (1 - options.min_relative_improvement) * scale.error_baseline;
   };
   auto full_scale = [&] { return Scale{static_cast<double>(comparison.num_residuals()), summary.error_baseline}; };
-  auto score = [&](const EffectFit& f, Candidate* c, bool refined, const Scale& scale) {
+  auto score = [&](const EffectFit& f, Candidate* c, bool refined, const compare::Comparison& on, const Scale& scale) {
     c->effect = f.effect;
     c->with = f.effect.ToString();
     c->error_after = f.summary.final_error;
+    c->floor_ratio = FloorRatio(on, summary.baseline, f.spec, f.effect);
     // Fitted parameters, and held ones set from the data (an estimated turn); held zeros add nothing.
     c->num_parameters = 0;
     for (const auto& p : model::FindEffectDefinition(f.effect.name).parameters) {
@@ -789,7 +800,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         EffectFit f = FitEffect(base, on, list[i].effect, fitted, fit_options);
         if (f.summary.status == fit::FitStatus::kFailed || !std::isfinite(f.summary.final_error)) return;
         out[i].held_parameters = list[i].held;
-        score(f, &out[i], refined, scale);
+        score(f, &out[i], refined, on, scale);
         ok[i] = true;
       } catch (const std::exception&) {
       }
@@ -807,7 +818,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
   }
   std::vector<Candidate> screened = run(tries, options.screening_iterations, false, false, search, search_scale);
-  std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return a.error_after < b.error_after; });
+  std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
   // Keep the best start per (effect, location, held parameters), then refine the most promising ones.
   std::vector<Candidate> unique;
   for (const auto& c : screened) {
@@ -836,7 +847,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     if (search_floor.known && search_floor.floor > 0) {
       std::vector<Try> kept;
       for (size_t i = 0; i < leaders.size(); ++i) {
-        if (!(unique[i].error_after <= kSecondStartSkipTimesFloor * search_floor.floor)) kept.push_back(leaders[i]);
+        if (!(JudgedError(unique[i]) <= kSecondStartSkipTimesFloor * search_floor.floor)) kept.push_back(leaders[i]);
       }
       at_floor = leaders.size() - kept.size();
       leaders = kept;
@@ -912,7 +923,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     std::vector<char> ok(unique.size(), 0);  // not vector<bool>: its elements share words, written from several threads
     for_each_candidate(unique.size(), [&](size_t i) {
       try {
-        unique[i].error_after = comparison.Error(ApplyCandidate(summary, unique[i]));
+        const model::ModelSpec with = ApplyCandidate(summary, unique[i]);
+        unique[i].error_after = comparison.Error(with);
+        unique[i].floor_ratio = FloorRatio(comparison, summary.baseline, with, unique[i].effect);
         ok[i] = std::isfinite(unique[i].error_after);
       } catch (const std::exception&) {
       }

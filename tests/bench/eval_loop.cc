@@ -18,10 +18,11 @@
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
-//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--verbose 1|2]
+//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--hiding NAME] [--verbose 1|2]
 //   --outside-kinds: the out-of-catalogue kinds taken in turn (default plate-bending,plate-breathing,cable);
 //   --verbose 2 also prints the last diagnosis' best candidate of every effect and location (16 at most);
-//   --effects a,b tries only these effects of the catalogue.
+//   --effects a,b tries only these effects of the catalogue;
+//   --hiding NAME runs and counts only the drawn catalogue cases that hide effect NAME (sensor-geometry, ...).
 //   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them, then
 //   three-effect cases, then out-of-catalogue cases.
 
@@ -30,6 +31,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -55,6 +57,8 @@ int g_max_rounds = diagnose::LoopOptions{}.max_rounds;
 double g_rounds_above = diagnose::LoopOptions{}.rounds_above_times_floor;
 // Effects tried (--effects a,b; empty: the whole catalogue).
 std::vector<std::string> g_effects;
+// Only the drawn cases that hide this effect are run and counted (--hiding NAME; empty: every case).
+std::string g_hiding;
 
 struct Outcome {
   bool named_all = false;    // every hidden effect added (name and location)
@@ -87,9 +91,13 @@ void PrintLeaders(const diagnose::DiagnoseSummary& last) {
   }
 }
 
-Outcome RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, int verbose) {
+std::optional<Outcome> RunCase(const model::ModelSpec& nominal, uint64_t seed, int num_effects, int verbose) {
   const synthetic::HiddenEffectOptions options = DrawOptions(seed, num_effects);
   const auto hidden = synthetic::MakeHiddenEffectCase(nominal, seed, options);
+  if (!g_hiding.empty() && std::none_of(hidden.effects.begin(), hidden.effects.end(),
+                                        [](const auto& e) { return e.name == g_hiding; })) {
+    return std::nullopt;
+  }
   diagnose::LoopOptions loop_options;
   loop_options.diagnose.comparison.space = g_space;
   loop_options.max_rounds = g_max_rounds;
@@ -268,7 +276,8 @@ int main(int argc, char** argv) {
     const std::string option = argv[i];
     static const std::set<std::string> known = {"--cases",         "--two-effects", "--outside",    "--outside-kinds",
                                                 "--three-effects", "--effect-free", "--first-seed", "--verbose",
-                                                "--effects",       "--max-rounds",  "--space",      "--rounds-above"};
+                                                "--effects",       "--max-rounds",  "--space",      "--rounds-above",
+                                                "--hiding"};
     if (!known.count(option) || i + 1 >= argc) {
       std::fprintf(stderr, "eval_loop: %s '%s' (usage: see the head of tests/bench/eval_loop.cc)\n",
                    known.count(option) ? "no value after" : "unknown option", argv[i]);
@@ -284,6 +293,7 @@ int main(int argc, char** argv) {
     else if (option == "--first-seed") first_seed = std::strtoull(value, nullptr, 10);
     else if (option == "--verbose") verbose = std::atoi(value);
     else if (option == "--effects") g_effects = split(value);
+    else if (option == "--hiding") g_hiding = value;
     else if (option == "--max-rounds") g_max_rounds = std::atoi(value);
     else if (option == "--rounds-above") g_rounds_above = std::atof(value);
     else if (option == "--space") g_space = compare::ParseComparisonSpace(value, "--space");
@@ -302,7 +312,9 @@ int main(int argc, char** argv) {
   };
   auto run = [&](int count, int num_effects, uint64_t seed0, Tally* t) {
     for (int c = 0; c < count; ++c) {
-      const Outcome o = RunCase(nominal, seed0 + c, num_effects, verbose);
+      const std::optional<Outcome> drawn = RunCase(nominal, seed0 + c, num_effects, verbose);
+      if (!drawn) continue;
+      const Outcome& o = *drawn;
       ++t->n;
       t->named += o.named_all;
       t->clean += !o.extra;

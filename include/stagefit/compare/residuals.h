@@ -297,6 +297,12 @@ class Comparison {
   ///     sd(error^2)^2 = sum_p w_p^4 (m4(s_p) - m2(s_p)^2) / (sum_p w_p^2)^2,  sd = sd(error^2) / (2 floor).
   /// Assumes the coherence is that of the FRF estimate (as estimate and synthesize write it).
   NoiseFloor CalcNoiseFloor() const;
+  /// The floor of the measurement as `spec` is compared with it. In compliance space a model with
+  /// geometry corrections is compared with the measurement re-projected under them, each point weighed
+  /// with its own projection's SNR (docs/error-metric.md §1): its floor is the formula above over those
+  /// points, with the raw noise propagated through that projection. Equal to CalcNoiseFloor() for a
+  /// spec whose corrections do not re-project the measurement.
+  NoiseFloor CalcNoiseFloor(const model::ModelSpec& spec) const;
 
   /// The error with its breakdown by element and band, and the model's FRFs on the grid.
   ComparisonResult Evaluate(const model::ModelSpec& spec) const;
@@ -377,6 +383,7 @@ class Comparison {
     const std::vector<Eigen::MatrixXcd>* declared = nullptr;  // measured_ as declared, or else
     std::vector<Eigen::MatrixXcd> reprojected;                // re-projected under the model's corrections
     std::vector<double> weights;                              // per point
+    std::vector<double> floor_snr;  // per point, as Point::snr, when weighed with its own projection's noise
     double norm = 1.0;                                        // sqrt(sum w^2)
     const std::vector<Eigen::MatrixXcd>& values() const { return declared ? *declared : reprojected; }
   };
@@ -430,6 +437,9 @@ class Comparison {
   // the raw SNR is 0) and the weight cap, to weigh a re-projected measurement with the noise its own
   // projection propagates.
   std::vector<Eigen::MatrixXd> raw_noise_var_;
+  // The same for the noise floor (Point::snr): (1 - gamma^2) |H_meas|^2, whose expectation is the noise
+  // variance itself (Create()).
+  std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the
