@@ -554,21 +554,6 @@ std::shared_ptr<const Comparison::MeasuredSide> Comparison::MeasuredSideFor(cons
     sum_w2 += side->weights[p] * side->weights[p];
   }
   side->norm = sum_w2 > 0.0 ? std::sqrt(sum_w2) : 1.0;
-  // Each point's SNR for the floor, as Create() has it for the declared projection: the re-projected
-  // |H_X| over the floor's raw noise propagated through this projection.
-  if (raw_noise_var_floor_.size() == raw_noise_var_.size()) {
-    const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
-    std::vector<Eigen::MatrixXd> sigma(raw_noise_var_floor_.size());
-    for (size_t k = 0; k < sigma.size(); ++k) sigma[k] = (P2 * raw_noise_var_floor_[k] * Q2).cwiseSqrt();
-    side->floor_snr.resize(points_.size());
-    for (size_t p = 0; p < points_.size(); ++p) {
-      const Point& pt = points_[p];
-      const ElementIndex idx = used_elements_[pt.element];
-      const double s = sigma[pt.frequency](idx.output, idx.input);
-      side->floor_snr[p] = s == 0.0 ? std::numeric_limits<double>::infinity()
-                                    : std::abs(side->reprojected[pt.frequency](idx.output, idx.input)) / s;
-    }
-  }
   if (cache) {
     std::lock_guard<std::mutex> lock(cache->mutex);
     auto& entries = cache->entries;
@@ -1061,11 +1046,21 @@ NoiseFloor Comparison::CalcNoiseFloor() const {
 }
 
 NoiseFloor Comparison::CalcNoiseFloor(const model::ModelSpec& spec) const {
-  if (!weights_are_snr_) return {};
+  Eigen::MatrixXd P, Q;
+  if (!weights_are_snr_ || !CorrectedProjection(spec, &P, &Q) || raw_noise_var_floor_.empty()) return CalcNoiseFloor();
+  // The side's weights, and each point's SNR for the floor as Create() has it for the declared
+  // projection: the re-projected |H_X| over the floor's raw noise propagated through this projection.
   const std::shared_ptr<const MeasuredSide> side = MeasuredSideFor(spec);
-  if (side->floor_snr.empty()) return CalcNoiseFloor();  // not re-projected, or weighed as declared
-  return NoiseFloorOf(
-      points_.size(), [&](size_t p) { return side->weights[p]; }, [&](size_t p) { return side->floor_snr[p]; });
+  const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
+  std::vector<Eigen::MatrixXd> sigma(raw_noise_var_floor_.size());
+  for (size_t k = 0; k < sigma.size(); ++k) sigma[k] = (P2 * raw_noise_var_floor_[k] * Q2).cwiseSqrt();
+  auto snr = [&](size_t p) {
+    const ElementIndex idx = used_elements_[points_[p].element];
+    const double s = sigma[points_[p].frequency](idx.output, idx.input);
+    return s == 0.0 ? std::numeric_limits<double>::infinity()
+                    : std::abs(side->values()[points_[p].frequency](idx.output, idx.input)) / s;
+  };
+  return NoiseFloorOf(points_.size(), [&](size_t p) { return side->weights[p]; }, snr);
 }
 
 std::string NoiseFloorLine(double error, const NoiseFloor& floor) {

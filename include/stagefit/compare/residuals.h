@@ -383,7 +383,6 @@ class Comparison {
     const std::vector<Eigen::MatrixXcd>* declared = nullptr;  // measured_ as declared, or else
     std::vector<Eigen::MatrixXcd> reprojected;                // re-projected under the model's corrections
     std::vector<double> weights;                              // per point
-    std::vector<double> floor_snr;  // per point, as Point::snr, when weighed with its own projection's noise
     double norm = 1.0;                                        // sqrt(sum w^2)
     const std::vector<Eigen::MatrixXcd>& values() const { return declared ? *declared : reprojected; }
   };
