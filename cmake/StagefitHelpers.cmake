@@ -45,6 +45,27 @@ function(stagefit_test_definitions target)
     STAGEFIT_BINARY="$<TARGET_FILE:stagefit>")
 endfunction()
 
+# stagefit_use_unity_build(target) (STAGEFIT_UNITY_BUILD): target's sources compiled in batches of 8
+# per translation unit, so that the Eigen and Ceres templates they share are instantiated and optimised
+# once per batch instead of once per file (about 40 % less compile time for src/). Names in a file's
+# anonymous namespace are then visible to the other files of its batch: two helpers of the same name
+# and signature fail to compile, so each file's helpers keep their own names.
+# The files of the fits' inner loops (STAGEFIT_HOT_SOURCES) are compiled on their own: in a batch, GCC
+# inlines less of them (a loop 5 % slower).
+set(STAGEFIT_HOT_SOURCES frf_evaluator.cc stiffness_update.cc residuals.cc least_squares.cc effect_problem.cc)
+function(stagefit_use_unity_build target)
+  if(STAGEFIT_UNITY_BUILD)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
+    get_target_property(sources ${target} SOURCES)
+    foreach(source ${sources})
+      get_filename_component(name ${source} NAME)
+      if(name IN_LIST STAGEFIT_HOT_SOURCES)
+        set_source_files_properties(${source} PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
+      endif()
+    endforeach()
+  endif()
+endfunction()
+
 # stagefit_library(NAME layer DEPS ...): one static library per layer folder, built from every .cc in
 # src/<layer>/, namespace stagefit::<layer>, headers in include/stagefit/<layer>/.
 function(stagefit_library)
@@ -55,6 +76,7 @@ function(stagefit_library)
   target_link_libraries(stagefit_${ARG_NAME} PUBLIC ${ARG_DEPS})
   add_library(stagefit::${ARG_NAME} ALIAS stagefit_${ARG_NAME})
   stagefit_use_pch(stagefit_${ARG_NAME})
+  stagefit_use_unity_build(stagefit_${ARG_NAME})
 endfunction()
 
 # stagefit_test(path/to/foo_test.cc [COST c] DEPS ...): one test program per test file, registered with

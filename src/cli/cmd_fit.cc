@@ -35,7 +35,7 @@ std::vector<std::string> SplitPatterns(const std::string& list) {
 }
 
 // A JSON number, or null for infinity / NaN (undetermined standard deviations).
-nlohmann::json Number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+nlohmann::json JsonNumber(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
 
 nlohmann::json MakeReport(const fit::FitSummary& summary, const compare::Comparison& comparison,
                           const std::string& measurement_path, const std::string& model_source,
@@ -46,8 +46,8 @@ nlohmann::json MakeReport(const fit::FitSummary& summary, const compare::Compari
   report["measurement"] = measurement_path;
   report["space"] = compare::ToString(comparison.space());
   report["band_hz"] = {comparison.frequency_hz()[0], comparison.frequency_hz()[comparison.num_frequencies() - 1]};
-  report["error"] = Number(summary.final_error);
-  report["error_before"] = Number(summary.initial_error);
+  report["error"] = JsonNumber(summary.final_error);
+  report["error_before"] = JsonNumber(summary.initial_error);
   report["status"] = fit::ToString(summary.status);
   report["message"] = summary.message;
   report["solver"] = summary.solver;
@@ -55,7 +55,7 @@ nlohmann::json MakeReport(const fit::FitSummary& summary, const compare::Compari
   report["evaluations"] = summary.num_evaluations;
   report["time_s"] = summary.time_s;
   report["num_residuals"] = summary.num_residuals;
-  report["residual_variance"] = Number(summary.residual_variance);
+  report["residual_variance"] = JsonNumber(summary.residual_variance);
   nlohmann::json parameters = nlohmann::json::array();
   std::vector<std::string> names;
   for (const auto& p : summary.parameters) {
@@ -63,27 +63,27 @@ nlohmann::json MakeReport(const fit::FitSummary& summary, const compare::Compari
     parameters.push_back({{"name", p.name},
                           {"initial", p.initial},
                           {"value", p.value},
-                          {"std", Number(p.std_dev)},
+                          {"std", JsonNumber(p.std_dev)},
                           {"unit", p.unit},
-                          {"lower", Number(p.lower)},
-                          {"upper", Number(p.upper)},
+                          {"lower", JsonNumber(p.lower)},
+                          {"upper", JsonNumber(p.upper)},
                           {"identifiable", p.identifiable},
                           {"at_bound", p.at_bound},
-                          {"relative_sensitivity", Number(p.relative_sensitivity)}});
+                          {"relative_sensitivity", JsonNumber(p.relative_sensitivity)}});
   }
   report["parameters"] = parameters;
   nlohmann::json matrix = nlohmann::json::array();
   for (int i = 0; i < summary.correlation.rows(); ++i) {
     nlohmann::json row = nlohmann::json::array();
-    for (int j = 0; j < summary.correlation.cols(); ++j) row.push_back(Number(summary.correlation(i, j)));
+    for (int j = 0; j < summary.correlation.cols(); ++j) row.push_back(JsonNumber(summary.correlation(i, j)));
     matrix.push_back(row);
   }
   report["correlation"] = {{"names", names}, {"matrix", matrix}};
   report["warnings"] = summary.warnings;
   nlohmann::json starts = nlohmann::json::array();
   for (const auto& s : summary.starts) {
-    starts.push_back({{"error_before", Number(std::sqrt(2.0 * s.initial_cost))},
-                      {"error", Number(std::sqrt(2.0 * s.final_cost))},
+    starts.push_back({{"error_before", JsonNumber(std::sqrt(2.0 * s.initial_cost))},
+                      {"error", JsonNumber(std::sqrt(2.0 * s.final_cost))},
                       {"status", fit::ToString(s.status)},
                       {"iterations", s.iterations}});
   }

@@ -18,8 +18,6 @@ struct UnitSymbol {
   Dimension dimension;
 };
 
-constexpr double kPi = 3.14159265358979323846;
-
 const std::vector<UnitSymbol>& Symbols() {
   static const std::vector<UnitSymbol> symbols = {
       {"rpm", 2.0 * kPi / 60.0, dim::kAngularVelocity},

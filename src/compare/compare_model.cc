@@ -9,17 +9,10 @@
 #include "stagefit/common/csv_meta.h"
 #include "stagefit/measurement/csv_file.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 
 namespace stagefit::compare {
 namespace {
-
-constexpr double kDegreesPerRadian = 57.29577951308232;
-
-bool HasAllGeometry(const measurement::FrfData& data) {
-  for (const auto& c : data.outputs) if (!c.has_geometry()) return false;
-  for (const auto& c : data.inputs) if (!c.has_geometry()) return false;
-  return true;
-}
 
 std::string Number(double value) {
   if (std::isnan(value)) return "nan";
@@ -37,7 +30,7 @@ CompareSummary CompareModel(const model::ModelSpec& spec, const measurement::Frf
   ModePairing modes = PairModes(comparison, result.model, spec, options.modes);
   CompareSummary summary{std::move(comparison), std::move(result), std::move(modes), {}, {}, {}};
   if (options.also_raw && options.comparison.space == ComparisonSpace::kCompliance) {
-    if (!HasAllGeometry(measurement)) {
+    if (!measurement.has_all_geometry()) {
       summary.raw_skipped = "the measurement has no channel geometry";
     } else {
       ComparisonOptions raw_options = options.comparison;

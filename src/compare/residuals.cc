@@ -12,6 +12,7 @@
 #include "stagefit/common/dof.h"
 #include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 #include "stagefit/model/assembled_model.h"
 
 namespace stagefit::compare {
@@ -21,7 +22,6 @@ using measurement::FrfData;
 using measurement::FrfQuantity;
 
 constexpr const char* kWrenchNames[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
-constexpr double kDegreesPerRadian = 57.29577951308232;
 
 std::string Where(const FrfData& data) {
   return "measurement '" + (data.source.empty() ? std::string("<memory>") : data.source) + "'";
@@ -47,12 +47,6 @@ bool IsProjected(const FrfData& data) {
   if (named) return true;
   for (const auto& c : data.outputs) if (c.has_geometry()) return false;
   for (const auto& c : data.inputs) if (c.has_geometry()) return false;
-  return true;
-}
-
-bool HasAllGeometry(const FrfData& data) {
-  for (const auto& c : data.outputs) if (!c.has_geometry()) return false;
-  for (const auto& c : data.inputs) if (!c.has_geometry()) return false;
   return true;
 }
 
@@ -193,7 +187,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     Eigen::MatrixXd P, Q;  // H_X = P H_L Q
     const bool projected = IsProjected(measurement);
     if (!projected) {
-      if (!HasAllGeometry(measurement)) {
+      if (!measurement.has_all_geometry()) {
         throw InputError(where + ": sensor_position/impact_position: the compliance comparison needs the "
                          "geometry of every channel (or a projected 6x6 FRF with outputs Dx..Rz and inputs "
                          "Fx..Mz); give the geometry or compare with --space raw");
@@ -285,7 +279,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     // Per body (docs/error-metric.md §1): each sensor body's channels projected to the 6 DoF of that
     // body's centre of mass, the impacts kept raw. The model side: the motion of each body's centre of
     // mass under forces at the impacts.
-    if (!HasAllGeometry(measurement)) {
+    if (!measurement.has_all_geometry()) {
       throw InputError(where + ": sensor_body/impact_body: the bodies comparison needs the geometry (body, "
                        "position, direction) of every channel");
     }
@@ -353,7 +347,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       c.snr_[k] = snr_k;
     }
   } else {
-    if (!HasAllGeometry(measurement)) {
+    if (!measurement.has_all_geometry()) {
       throw InputError(where + ": sensor_body/impact_body: the raw comparison needs the geometry (body, "
                        "position, direction) of every channel to place them on the model");
     }

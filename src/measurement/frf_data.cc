@@ -10,12 +10,8 @@
 namespace stagefit::measurement {
 namespace {
 
-std::string Where(const FrfData& data) {
-  return data.source.empty() ? std::string("measurement") : "'" + data.source + "'";
-}
-
 [[noreturn]] void Fail(const FrfData& data, const std::string& message) {
-  throw InputError(Where(data) + ": " + message);
+  throw InputError(data.where() + ": " + message);
 }
 
 bool IsFinite(const Eigen::Vector3d& v) { return v.allFinite(); }

@@ -9,14 +9,13 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 #include "stagefit/common/utf8.h"
 
 namespace stagefit::measurement {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDirectionTolerance = 1e-6;
 constexpr int kMinSamples = 16;
 // Leakage warning: the windowed response still holds this share of its peak in the last 5 % of
 // the record.
@@ -215,7 +214,7 @@ void Validate(const RawHammerData& data) {
         Fail(data, std::string(field) + ": " + Quote(c.name) + " appears twice, expected unique names");
       }
       if (c.has_geometry() && (!c.position_W.allFinite() || !c.direction_W.allFinite() ||
-                               std::abs(c.direction_W.norm() - 1.0) > kDirectionTolerance)) {
+                               std::abs(c.direction_W.norm() - 1.0) > kUnitDirectionTolerance)) {
         std::ostringstream m;
         m << field << " " << Quote(c.name) << ": position (" << c.position_W.transpose()
           << "), direction (" << c.direction_W.transpose()

@@ -11,17 +11,12 @@
 #include "stagefit/common/dof.h"
 #include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 
 namespace stagefit::measurement {
 namespace {
 
-constexpr double kDirectionTolerance = 1e-6;
 constexpr double kNullSpaceShareToName = 0.1;
-constexpr double kPi = 3.14159265358979323846;
-
-std::string Where(const FrfData& data) {
-  return data.source.empty() ? std::string("measurement") : "'" + data.source + "'";
-}
 
 Eigen::MatrixXd CalcJacobian(const std::vector<ChannelGeometry>& channels,
                              const Eigen::Vector3d& p_WXo, const char* kind,
@@ -34,7 +29,7 @@ Eigen::MatrixXd CalcJacobian(const std::vector<ChannelGeometry>& channels,
                        "': no geometry (body, position, direction), expected it for the projection");
     }
     const Eigen::Vector3d& n = c.direction_W;
-    if (!n.allFinite() || std::abs(n.norm() - 1.0) > kDirectionTolerance) {
+    if (!n.allFinite() || std::abs(n.norm() - 1.0) > kUnitDirectionTolerance) {
       std::ostringstream m;
       m << prefix << kind << " '" << c.name << "': direction (" << n.transpose()
         << ") is not a unit vector, expected length 1";
@@ -54,7 +49,7 @@ std::vector<std::pair<std::string, std::vector<int>>> GroupByBody(
   for (std::size_t i = 0; i < channels.size(); ++i) {
     const ChannelGeometry& c = channels[i];
     if (!c.has_geometry()) {
-      throw InputError(Where(data) + ": " + kind + " '" + c.name +
+      throw InputError(data.where() + ": " + kind + " '" + c.name +
                        "': no geometry (body, position, direction), expected it for the projection");
     }
     auto it = std::find_if(groups.begin(), groups.end(),
@@ -70,13 +65,13 @@ std::vector<std::pair<std::string, std::vector<int>>> GroupByBody(
 
 void CheckShapes(const FrfData& data) {
   if (static_cast<int>(data.frf.size()) != data.num_frequencies()) {
-    throw InputError(Where(data) + ": frf: " + std::to_string(data.frf.size()) +
+    throw InputError(data.where() + ": frf: " + std::to_string(data.frf.size()) +
                      " frequency points, expected " + std::to_string(data.num_frequencies()) +
                      " (one per freq_hz)");
   }
   for (const Eigen::MatrixXcd& H : data.frf) {
     if (H.rows() != data.num_outputs() || H.cols() != data.num_inputs()) {
-      throw InputError(Where(data) + ": frf: a matrix of " + std::to_string(H.rows()) + " x " +
+      throw InputError(data.where() + ": frf: a matrix of " + std::to_string(H.rows()) + " x " +
                        std::to_string(H.cols()) + ", expected Nout x Nin = " +
                        std::to_string(data.num_outputs()) + " x " +
                        std::to_string(data.num_inputs()));
@@ -169,16 +164,16 @@ FrfData ProjectToFrame(const FrfData& raw, const Eigen::Vector3d& default_p_WXo)
   if (sensor_groups.size() > 1 || impact_groups.size() > 1) {
     const bool sensors = sensor_groups.size() > 1;
     const auto& groups = sensors ? sensor_groups : impact_groups;
-    throw InputError(Where(raw) + ": " + (sensors ? "sensor_body" : "impact_body") +
+    throw InputError(raw.where() + ": " + (sensors ? "sensor_body" : "impact_body") +
                      ": channels on several bodies ('" + groups[0].first + "', '" +
                      groups[1].first +
                      "'), expected one body for the projection to {X}; project per body instead");
   }
   STAGEFIT_ASSERT(!sensor_groups.empty() && !impact_groups.empty(), "no channels");
-  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
-  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
-  CheckObservable(J_a, Where(raw) + ": sensors");
-  CheckObservable(J_F, Where(raw) + ": impacts");
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", raw.where() + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", raw.where() + ": ");
+  CheckObservable(J_a, raw.where() + ": sensors");
+  CheckObservable(J_F, raw.where() + ": impacts");
   const Eigen::MatrixXcd left = PseudoInverse(J_a).cast<std::complex<double>>();
   const Eigen::MatrixXcd right =
       PseudoInverse(J_F.transpose()).cast<std::complex<double>>();
@@ -202,7 +197,7 @@ FrfData ProjectPerBody(const FrfData& raw, const std::map<std::string, Eigen::Ve
   auto com = [&](const std::string& body) {
     auto it = p_WBcm.find(body);
     if (it == p_WBcm.end()) {
-      throw InputError(Where(raw) + ": body '" + body +
+      throw InputError(raw.where() + ": body '" + body +
                        "' carries channels but has no centre of mass given, expected one of the "
                        "model's bodies");
     }
@@ -219,8 +214,8 @@ FrfData ProjectPerBody(const FrfData& raw, const std::map<std::string, Eigen::Ve
   for (std::size_t b = 0; b < sensor_groups.size(); ++b) {
     const auto& [body, rows] = sensor_groups[b];
     const Eigen::Vector3d p = com(body);
-    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), p, "sensor", Where(raw) + ": ");
-    CheckObservable(J_a, Where(raw) + ": sensors on body '" + body + "'");
+    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), p, "sensor", raw.where() + ": ");
+    CheckObservable(J_a, raw.where() + ": sensors on body '" + body + "'");
     const Eigen::MatrixXd pinv = PseudoInverse(J_a);
     for (std::size_t r = 0; r < rows.size(); ++r) left.block(6 * b, rows[r], 6, 1) = pinv.col(r);
     const auto channels = RigidChannels(body, p, body + ".", false);
@@ -237,8 +232,8 @@ FrfData ProjectPerBody(const FrfData& raw, const std::map<std::string, Eigen::Ve
     for (std::size_t b = 0; b < impact_groups.size(); ++b) {
       const auto& [body, cols] = impact_groups[b];
       const Eigen::Vector3d p = com(body);
-      const Eigen::MatrixXd J_F = CalcJacobian(Subset(raw.inputs, cols), p, "impact", Where(raw) + ": ");
-      CheckObservable(J_F, Where(raw) + ": impacts on body '" + body + "'");
+      const Eigen::MatrixXd J_F = CalcJacobian(Subset(raw.inputs, cols), p, "impact", raw.where() + ": ");
+      CheckObservable(J_F, raw.where() + ": impacts on body '" + body + "'");
       const Eigen::MatrixXd pinv_t = PseudoInverse(J_F.transpose());
       for (std::size_t c = 0; c < cols.size(); ++c) {
         right.block(cols[c], 6 * b, 1, 6) = pinv_t.row(c);
@@ -282,7 +277,7 @@ FrfData ConvertQuantity(const FrfData& data, FrfQuantity to) {
     const double fhz = data.frequency_hz(f);
     if (!(fhz > 0.0) || !std::isfinite(fhz)) {
       std::ostringstream m;
-      m << Where(data) << ": freq_hz(" << f + 1 << ") = " << fhz
+      m << data.where() << ": freq_hz(" << f + 1 << ") = " << fhz
         << ", expected > 0 to convert " << ToString(data.quantity) << " to " << ToString(to);
       throw InputError(m.str());
     }
@@ -405,10 +400,10 @@ RigidConsistency CalcRigidConsistency(const FrfData& raw, const Eigen::Vector3d&
                                       const std::vector<FrequencyBand>& bands) {
   CheckShapes(raw);
   const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
-  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
-  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
-  CheckObservable(J_a, Where(raw) + ": sensors");
-  CheckObservable(J_F, Where(raw) + ": impacts");
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", raw.where() + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", raw.where() + ": ");
+  CheckObservable(J_a, raw.where() + ": sensors");
+  CheckObservable(J_F, raw.where() + ": impacts");
   const int nout = raw.num_outputs();
   const int nin = raw.num_inputs();
   const Eigen::MatrixXcd out_residual =
@@ -426,10 +421,10 @@ RigidConsistency CalcRigidConsistencyPerBody(const FrfData& raw, const std::map<
   for (const auto& [body, rows] : GroupByBody(raw.outputs, raw, "sensor")) {
     auto it = p_WBcm.find(body);
     if (it == p_WBcm.end()) {
-      throw InputError(Where(raw) + ": body '" + body + "' carries sensors but has no centre of mass given");
+      throw InputError(raw.where() + ": body '" + body + "' carries sensors but has no centre of mass given");
     }
-    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), it->second, "sensor", Where(raw) + ": ");
-    CheckObservable(J_a, Where(raw) + ": sensors on body '" + body + "'");
+    const Eigen::MatrixXd J_a = CalcJacobian(Subset(raw.outputs, rows), it->second, "sensor", raw.where() + ": ");
+    CheckObservable(J_a, raw.where() + ": sensors on body '" + body + "'");
     const int m = static_cast<int>(rows.size());
     const Eigen::MatrixXd block = Eigen::MatrixXd::Identity(m, m) - J_a * PseudoInverse(J_a);
     for (int r = 0; r < m; ++r) {
@@ -479,8 +474,8 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
                                                                 double fmin_hz, double fmax_hz) {
   CheckShapes(raw);
   const Eigen::Vector3d p_WXo = raw.frame_origin_W.value_or(default_p_WXo);
-  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", Where(raw) + ": ");
-  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", Where(raw) + ": ");
+  const Eigen::MatrixXd J_a = CalcJacobian(raw.outputs, p_WXo, "sensor", raw.where() + ": ");
+  const Eigen::MatrixXd J_F = CalcJacobian(raw.inputs, p_WXo, "impact", raw.where() + ": ");
   std::vector<int> used;
   for (int f = 0; f < raw.num_frequencies(); ++f) {
     const double fhz = raw.frequency_hz(f);

@@ -5,7 +5,7 @@
 namespace stagefit::model {
 namespace {
 
-int RequireBody(const ModelSpec& spec, const std::string& body, const std::string& what) {
+int RequireIoBody(const ModelSpec& spec, const std::string& body, const std::string& what) {
   int b = FindBody(spec, body);
   if (b < 0) throw InputError(what + ": body '" + body + "' is not a body of the model");
   return b;
@@ -73,7 +73,7 @@ SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<Inp
     switch (in.kind) {
       case InputSpec::Kind::kForce:
       case InputSpec::Kind::kTorque: {
-        int b = RequireBody(spec, in.body, what);
+        int b = RequireIoBody(spec, in.body, what);
         if (!in.direction_W.allFinite() || in.direction_W.norm() == 0) {
           throw InputError(what + ": direction is zero or not finite, expected a unit vector");
         }
@@ -126,7 +126,7 @@ SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<Inp
           origin = f.origin_W;
           R_WF = f.R_WF;
         } else {
-          b = RequireBody(spec, out.body, what);
+          b = RequireIoBody(spec, out.body, what);
           origin = out.position_W;
         }
         Matrix6Xd motion = AxesFromWorld(R_WF) * model.CalcPointMap(b, origin);
@@ -143,7 +143,7 @@ SecondOrderSystem BuildSystem(const AssembledModel& model, const std::vector<Inp
         break;
       }
       case OutputSpec::Kind::kSensor: {
-        int b = RequireBody(spec, out.body, what);
+        int b = RequireIoBody(spec, out.body, what);
         if (!out.direction_W.allFinite() || out.direction_W.norm() == 0) {
           throw InputError(what + ": direction is zero or not finite, expected a unit vector");
         }
@@ -242,7 +242,7 @@ std::vector<InputSpec> GroundInputs(const AssembledModel& model) {
 }
 
 std::vector<OutputSpec> BodyCoMOutputs(const ModelSpec& spec, const std::string& body) {
-  int b = RequireBody(spec, body, "body outputs");
+  int b = RequireIoBody(spec, body, "body outputs");
   std::vector<OutputSpec> outputs;
   for (Dof d : kAllDofs) {
     OutputSpec out;

@@ -12,7 +12,7 @@
 namespace stagefit::model {
 namespace {
 
-std::string Num(double v) {
+std::string SixDigits(double v) {
   std::ostringstream out;
   out << v;
   return out.str();
@@ -28,7 +28,7 @@ bool IsUnit(const Eigen::Vector3d& v) { return v.allFinite() && std::abs(v.norm(
 void CheckBody(const BodySpec& b, std::vector<std::string>& errors) {
   const std::string where = "body '" + b.name + "'";
   if (!(std::isfinite(b.mass_kg) && b.mass_kg > 0)) {
-    errors.push_back(where + ": mass = " + Num(b.mass_kg) + " kg, expected a finite value > 0");
+    errors.push_back(where + ": mass = " + SixDigits(b.mass_kg) + " kg, expected a finite value > 0");
   }
   if (!b.com_W.allFinite()) errors.push_back(where + ": com has a non-finite coordinate");
   const Eigen::Matrix3d& I = b.inertia_com_W;
@@ -43,13 +43,13 @@ void CheckBody(const BodySpec& b, std::vector<std::string>& errors) {
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(I);
   Eigen::Vector3d l = eig.eigenvalues();
   if (l.minCoeff() <= 0) {
-    errors.push_back(where + ": inertia is not positive definite (principal moments " + Num(l(0)) + ", " +
-                     Num(l(1)) + ", " + Num(l(2)) + " kg m^2), expected all > 0");
+    errors.push_back(where + ": inertia is not positive definite (principal moments " + SixDigits(l(0)) + ", " +
+                     SixDigits(l(1)) + ", " + SixDigits(l(2)) + " kg m^2), expected all > 0");
     return;
   }
   const double tol = 1e-9 * l.sum();
   if (l(0) + l(1) < l(2) - tol) {
-    errors.push_back(where + ": principal moments " + Num(l(0)) + ", " + Num(l(1)) + ", " + Num(l(2)) +
+    errors.push_back(where + ": principal moments " + SixDigits(l(0)) + ", " + SixDigits(l(1)) + ", " + SixDigits(l(2)) +
                      " kg m^2 violate the triangle inequality (I1 + I2 >= I3); no rigid body has them");
   }
 }
@@ -63,15 +63,15 @@ void CheckJoint(const JointSpec& j, std::vector<std::string>& errors) {
     const char* kunit = i < 3 ? " N/m" : " Nm/rad";
     const char* cunit = i < 3 ? " N s/m" : " Nm s/rad";
     if (!(std::isfinite(j.stiffness[i]) && j.stiffness[i] >= 0)) {
-      errors.push_back(where + ": stiffness " + dof + " = " + Num(j.stiffness[i]) + kunit +
+      errors.push_back(where + ": stiffness " + dof + " = " + SixDigits(j.stiffness[i]) + kunit +
                        ", expected a finite value >= 0");
     }
     if (!(std::isfinite(j.damping[i]) && j.damping[i] >= 0)) {
-      errors.push_back(where + ": damping " + dof + " = " + Num(j.damping[i]) + cunit +
+      errors.push_back(where + ": damping " + dof + " = " + SixDigits(j.damping[i]) + cunit +
                        ", expected a finite value >= 0");
     }
     if (!(std::isfinite(j.loss_factor[i]) && j.loss_factor[i] >= 0 && j.loss_factor[i] < 10)) {
-      errors.push_back(where + ": loss_factor " + dof + " = " + Num(j.loss_factor[i]) +
+      errors.push_back(where + ": loss_factor " + dof + " = " + SixDigits(j.loss_factor[i]) +
                        ", expected a value in [0, 10)");
     }
     if (j.imposed[i] && (j.stiffness[i] != 0 || j.damping[i] != 0)) {
@@ -109,7 +109,7 @@ void CheckJoint(const JointSpec& j, std::vector<std::string>& errors) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(K);
     if (eig.eigenvalues().minCoeff() < -1e-12 * K.cwiseAbs().maxCoeff()) {
       errors.push_back(where + ": the coupling terms make the joint stiffness indefinite (smallest eigenvalue " +
-                       Num(eig.eigenvalues().minCoeff()) +
+                       SixDigits(eig.eigenvalues().minCoeff()) +
                        "); expected |k_ab| <= sqrt(k_aa k_bb) for each coupling");
     }
   }
@@ -188,7 +188,7 @@ std::vector<std::string> ValidateModel(const ModelSpec& spec) {
       if (!body_index.count(p.body)) errors.push_back(where + ": body '" + p.body + "' is not a body of the model");
       if (!p.position_W.allFinite()) errors.push_back(where + ": position has a non-finite coordinate");
       if (!IsUnit(p.direction_W)) {
-        errors.push_back(where + ": direction has length " + Num(p.direction_W.norm()) + ", expected a unit vector");
+        errors.push_back(where + ": direction has length " + SixDigits(p.direction_W.norm()) + ", expected a unit vector");
       }
     }
   }
@@ -196,7 +196,7 @@ std::vector<std::string> ValidateModel(const ModelSpec& spec) {
     errors.push_back("model: compliance_frame '" + spec.compliance_frame + "' is not a [[frame]] of the model");
   }
   if (!(std::isfinite(spec.acquisition_delay_s) && spec.acquisition_delay_s >= 0)) {
-    errors.push_back("acquisition: delay = " + Num(spec.acquisition_delay_s) + " s, expected a finite value >= 0");
+    errors.push_back("acquisition: delay = " + SixDigits(spec.acquisition_delay_s) + " s, expected a finite value >= 0");
   }
   return errors;
 }

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 #include "stagefit/kinematics/stage_stack.h"
 #include "stagefit/model/assembled_model.h"
 #include "stagefit/model/linear_system.h"
@@ -22,7 +23,6 @@ namespace {
 
 constexpr const char* kGraniteFrame = "simulate.granite";
 constexpr const char* kPoiFrame = "simulate.poi";
-constexpr double kPi = 3.14159265358979323846;
 
 disturbance::PsdTable Table(const std::string& name, std::vector<double> f, std::vector<double> s) {
   disturbance::PsdTable t;

@@ -408,7 +408,9 @@ TEST(GeometryCorrection, ACorrectedProjectionHasItsOwnNoiseFloor) {
         EXPECT_EQ(plain.floor, declared.floor);
         EXPECT_EQ(plain.sd, declared.sd);
       }
-      if (euler.isZero()) EXPECT_NEAR(own.floor, declared.floor, 1e-12 * declared.floor);
+      if (euler.isZero()) {
+        EXPECT_NEAR(own.floor, declared.floor, 1e-12 * declared.floor);
+      }
       sum_e2 += std::pow(comparison.Error(corrected), 2);
       sum_declared += declared.floor;
       sum_own += own.floor;

@@ -14,6 +14,9 @@
 
 namespace stagefit {
 
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kDegreesPerRadian = 180.0 / kPi;
+
 /// Physical dimension as exponents of kg, m, s and rad, stored doubled so that sqrt(Hz) is exact.
 struct Dimension {
   int kg2 = 0, m2 = 0, s2 = 0, rad2 = 0;

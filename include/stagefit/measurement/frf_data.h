@@ -45,6 +45,14 @@ struct FrfData {
   int num_outputs() const { return static_cast<int>(outputs.size()); }
   int num_inputs() const { return static_cast<int>(inputs.size()); }
   bool has_coherence() const { return !coherence.empty(); }
+  /// Every output and every input carries its geometry.
+  bool has_all_geometry() const {
+    for (const auto& c : outputs) if (!c.has_geometry()) return false;
+    for (const auto& c : inputs) if (!c.has_geometry()) return false;
+    return true;
+  }
+  /// The data's name in messages: its file quoted, or "measurement".
+  std::string where() const { return source.empty() ? std::string("measurement") : "'" + source + "'"; }
 };
 
 /// Checks, in this order, and throws InputError naming `data.source`, the field and the problem:
