@@ -49,8 +49,6 @@ struct CorrectionCase {
   std::string with;
 };
 
-// Noise-free data whose channel `index` (a sensor, or an impact when `impact`) is really at the
-// declared geometry moved by `offset` and turned by `euler`; the data declare the nominal geometry.
 // The index of the sensor `name` among MakeCase()'s (synthetic::ComplianceTestSensors), or -1.
 int TestSensorIndex(const std::string& name) {
   const auto sensors = synthetic::ComplianceTestSensors("hexapod", Eigen::Vector3d(0, 0, -0.03));
@@ -58,6 +56,8 @@ int TestSensorIndex(const std::string& name) {
   return it == sensors.end() ? -1 : static_cast<int>(it - sensors.begin());
 }
 
+// Noise-free data whose channel `index` (a sensor, or an impact when `impact`) is really at the
+// declared geometry moved by `offset` and turned by `euler`; the data declare the nominal geometry.
 CorrectionCase MakeCase(bool impact, int index, const Eigen::Vector3d& offset, const Eigen::Vector3d& euler) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const Eigen::Vector3d X(0, 0, -0.03);
