@@ -235,7 +235,7 @@ struct StartOutcome {
 struct FitSummary {
   FitStatus status = FitStatus::kFailed;
   std::string message;               ///< one line: the solver's termination reason
-  std::string solver;                ///< e.g. "ceres (LM, DENSE_QR, analytic J)"
+  std::string solver;                ///< e.g. "ceres (LM, DENSE_NORMAL_CHOLESKY, analytic J)"
   int num_parameters = 0;
   int num_residuals = 0;
   double initial_cost = 0.0;         ///< 0.5 ||r||^2 at the initial values
