@@ -538,6 +538,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // on all frequencies.
   const std::optional<compare::Comparison> thinned_comparison = ThinnedComparison(comparison, options.max_search_frequencies);
   const compare::Comparison& search = thinned_comparison ? *thinned_comparison : comparison;
+  // The screening and its scans on a coarser grid still (DiagnoseOptions::max_screening_frequencies):
+  // four iterations from far only need to tell the promising candidates from the others.
+  std::optional<compare::Comparison> screening_comparison;
+  if (options.max_screening_frequencies > 0 && search.num_frequencies() > options.max_screening_frequencies) {
+    screening_comparison = ThinnedComparison(comparison, options.max_screening_frequencies);
+  }
+  const compare::Comparison& screen = screening_comparison ? *screening_comparison : search;
 
   // 2. Candidates: every effect at every location (extra bodies from five starting local modes,
   // sensor-geometry at every channel, started from its direction as the other channels see it).
@@ -646,7 +653,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // 1 kg body has its minimum at 92 Hz, and fits from there reach the body's mass and local mode.
       std::vector<double> data_starts_hz = extra_body_data_start_hz;
       const model::Effect at_default = e;
-      if (const auto hz = ScanBandHz(search, [&](double hz) {
+      if (const auto hz = ScanBandHz(screen, [&](double hz) {
             model::Effect body = at_default;
             SetExtraBodyModesHz(&body, hz, hz);
             model::ModelSpec with = summary.baseline;
@@ -687,7 +694,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // baseline's 0.058 (four iterations, its mode in the band) and never refined; its 30-iteration
       // fit from there stops at 5.6e7 (0.111). The scan's minimum is at 3.1e8, and the fit from there
       // reaches the noise floor (0.0387, floor 0.0387).
-      if (const auto k = ScanServoStiffness(search, spec_as_given, e)) {
+      if (const auto k = ScanServoStiffness(screen, spec_as_given, e)) {
         model::Effect scanned = e;
         scanned.parameters["k"] = *k;
         scan_starts.push_back({scanned, as_given, {}});
@@ -709,7 +716,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     std::vector<std::pair<double, size_t>> minima;  // (error, index into couplings)
     std::vector<std::optional<ScanMinimum>> scans(couplings.size());
     for (size_t i = 0; i < couplings.size(); ++i) {
-      scans[i] = ScanCouplingStiffness(search, spec_as_given, couplings[i]);
+      scans[i] = ScanCouplingStiffness(screen, spec_as_given, couplings[i]);
       if (scans[i]) minima.push_back({scans[i]->error, i});
     }
     std::sort(minima.begin(), minima.end());
@@ -718,7 +725,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     // indefinite (seed 35023 of eval_loop). Its scans then have no minimum either.
     double error_as_given = std::numeric_limits<double>::infinity();
     try {
-      error_as_given = search.Error(spec_as_given);
+      error_as_given = screen.Error(spec_as_given);
     } catch (const InputError&) {
     }
     if (!minima.empty() && std::isfinite(error_as_given) && minima[0].first <= (1 - kServoScanMinDrop) * error_as_given &&
@@ -811,13 +818,36 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     return kept;
   };
-  if (thinned_comparison) {
+  // Every candidate of `list` scored on `on` as it was fitted (on another grid); those that cannot be
+  // evaluated there are dropped.
+  auto score_on = [&](const std::vector<Candidate>& list, const compare::Comparison& on, const Scale& scale) {
+    std::vector<Candidate> out = list;
+    std::vector<char> ok(out.size(), 0);  // not vector<bool>: its elements share words, written from several threads
+    for_each_candidate(out.size(), [&](size_t i) {
+      try {
+        const model::ModelSpec with = ApplyCandidate(summary, out[i]);
+        out[i].error_after = on.Error(with);
+        out[i].floor_ratio = FloorRatio(on, summary.baseline, with, out[i].effect);
+        ok[i] = std::isfinite(out[i].error_after);
+      } catch (const std::exception&) {
+      }
+    });
+    std::vector<Candidate> scored;
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (!ok[i]) continue;
+      scored.push_back(out[i]);
+      rescore(&scored.back(), scale);
+    }
+    return scored;
+  };
+  if (screening_comparison || thinned_comparison) {
     say(Format("screening %.0f candidates on %.0f of the %.0f frequencies", static_cast<double>(tries.size()),
-               search.num_frequencies(), comparison.num_frequencies()));
+               screen.num_frequencies(), comparison.num_frequencies()));
   } else {
     say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
   }
-  std::vector<Candidate> screened = run(tries, options.screening_iterations, false, false, search, search_scale);
+  const Scale screen_scale{static_cast<double>(screen.num_residuals()), screen.Error(summary.baseline)};
+  std::vector<Candidate> screened = run(tries, options.screening_iterations, false, false, screen, screen_scale);
   std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
   // Keep the best start per (effect, location, held parameters), then refine the most promising ones.
   std::vector<Candidate> unique;
@@ -825,6 +855,12 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     bool seen = false;
     for (const auto& u : unique) seen = seen || SameCandidate(u, c);
     if (!seen) unique.push_back(c);
+  }
+  // Screened on a coarser grid: ranked for the refinement by their errors on the search grid, which the
+  // refinement compares its fits with (MergeBetter).
+  if (screening_comparison) {
+    unique = score_on(unique, search, search_scale);
+    std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
   }
   // Refinement continues from where screening stopped: the effect's and the model's parameters. One
   // effect takes at most kMaxRefinedPerEffect of the places: the 22 channels' sensor-geometry
@@ -920,23 +956,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
   // and the leaders are finished there (their optimum moves a little with the grid).
   if (thinned_comparison) {
-    std::vector<char> ok(unique.size(), 0);  // not vector<bool>: its elements share words, written from several threads
-    for_each_candidate(unique.size(), [&](size_t i) {
-      try {
-        const model::ModelSpec with = ApplyCandidate(summary, unique[i]);
-        unique[i].error_after = comparison.Error(with);
-        unique[i].floor_ratio = FloorRatio(comparison, summary.baseline, with, unique[i].effect);
-        ok[i] = std::isfinite(unique[i].error_after);
-      } catch (const std::exception&) {
-      }
-    });
-    std::vector<Candidate> scored;
-    for (size_t i = 0; i < unique.size(); ++i) {
-      if (!ok[i]) continue;
-      scored.push_back(unique[i]);
-      rescore(&scored.back(), full_scale());
-    }
-    unique = scored;
+    unique = score_on(unique, comparison, full_scale());
     SortByBic(&unique);
     const std::vector<Try> leaders = Continue(unique, options.num_finished);
     say(Format("finishing the best %.0f on all %.0f frequencies", static_cast<double>(leaders.size()),

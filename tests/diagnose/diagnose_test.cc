@@ -183,8 +183,8 @@ TEST(ImplausibleBecause, ABodyThatStandsStillInTheBand) {
   EXPECT_EQ(ImplausibleBecause(nominal, body, 5.0), "");
 }
 
-// A search on a thinned grid: every candidate is scored on all frequencies, and the result agrees
-// with a search on all of them.
+// A search on a thinned grid, and a screening on a coarser one still: every candidate is scored on
+// all frequencies, and the results agree with a search on all of them.
 TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   synthetic::HiddenEffectOptions hidden;
@@ -195,27 +195,34 @@ TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   DiagnoseOptions options = QuietOptions();
   options.effects = {"delay", "structural-damping"};
   options.max_search_frequencies = 150;
+  options.max_screening_frequencies = 0;
   const auto thinned = Diagnose(nominal, c.measurement, options);
   std::cout << thinned.BriefReport() << "time " << thinned.time_s << " s\n";
+  options.max_screening_frequencies = 60;
+  const auto coarse = Diagnose(nominal, c.measurement, options);
+  std::cout << coarse.BriefReport() << "time " << coarse.time_s << " s\n";
   options.max_search_frequencies = 0;
+  options.max_screening_frequencies = 0;
   const auto full = Diagnose(nominal, c.measurement, options);
   std::cout << full.BriefReport() << "time " << full.time_s << " s\n";
 
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   ASSERT_EQ(comparison.num_frequencies(), 400);
-  for (const Candidate& candidate : thinned.candidates) {
-    EXPECT_NEAR(candidate.error_after, comparison.Error(ApplyCandidate(thinned, candidate)), 1e-12 * candidate.error_after)
-        << candidate.with;
-  }
   const double floor = comparison.Error(c.truth);
-  ASSERT_TRUE(thinned.effect_found);
   ASSERT_TRUE(full.effect_found);
-  EXPECT_EQ(thinned.candidates[0].effect.name, "delay");
   EXPECT_EQ(full.candidates[0].effect.name, "delay");
-  EXPECT_LT(thinned.candidates[0].error_after, 1.5 * floor);
-  EXPECT_NEAR(thinned.candidates[0].error_after, full.candidates[0].error_after, 0.02 * full.candidates[0].error_after);
-  EXPECT_NEAR(thinned.candidates[0].effect.parameters.at("tau"), full.candidates[0].effect.parameters.at("tau"),
-              0.01 * full.candidates[0].effect.parameters.at("tau"));
+  for (const DiagnoseSummary* searched : {&thinned, &coarse}) {
+    for (const Candidate& candidate : searched->candidates) {
+      EXPECT_NEAR(candidate.error_after, comparison.Error(ApplyCandidate(*searched, candidate)), 1e-12 * candidate.error_after)
+          << candidate.with;
+    }
+    ASSERT_TRUE(searched->effect_found);
+    EXPECT_EQ(searched->candidates[0].effect.name, "delay");
+    EXPECT_LT(searched->candidates[0].error_after, 1.5 * floor);
+    EXPECT_NEAR(searched->candidates[0].error_after, full.candidates[0].error_after, 0.02 * full.candidates[0].error_after);
+    EXPECT_NEAR(searched->candidates[0].effect.parameters.at("tau"), full.candidates[0].effect.parameters.at("tau"),
+                0.01 * full.candidates[0].effect.parameters.at("tau"));
+  }
 }
 
 // The effects already in the model are fitted again with every candidate from the refinement on

@@ -93,6 +93,12 @@ struct DiagnoseOptions {
   /// band's frequencies, every k-th of them; the leaders are then finished on all of them with
   /// `finish_iterations`, and every candidate is scored on all of them. 0: search on all.
   int max_search_frequencies = 400;
+  /// The screening, and the scans that give it starts, run on at most this many of the band's
+  /// frequencies (every k-th); each screened candidate is then scored on the search grid, which ranks
+  /// them for the refinement. 0, or a search grid not larger: on the search grid. 200: the six two-effect
+  /// loops of eval_loop's seeds 73000-73005 ended with the same effects in 0.91x the time, and on the
+  /// fresh seeds 77000 two two-effect cases more were explained (docs/loop-history.md, Time).
+  int max_screening_frequencies = 200;
   int num_finished = 3;         ///< leaders finished on all frequencies after a thinned search
   int finish_iterations = 4;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
