@@ -368,6 +368,11 @@ void SortByBic(std::vector<Candidate>* candidates) {
   std::sort(candidates->begin(), candidates->end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
 }
 
+void SortByJudgedError(std::vector<Candidate>* candidates) {
+  std::sort(candidates->begin(), candidates->end(),
+            [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
+}
+
 /// Each of `fitted` replaces the same candidate of `ranked` unless its error is higher; re-ranked.
 void MergeBetter(const std::vector<Candidate>& fitted, std::vector<Candidate>* ranked) {
   for (const auto& r : fitted) {
@@ -848,7 +853,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   }
   const Scale screen_scale{static_cast<double>(screen.num_residuals()), screen.Error(summary.baseline)};
   std::vector<Candidate> screened = run(tries, options.screening_iterations, false, false, screen, screen_scale);
-  std::sort(screened.begin(), screened.end(), [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
+  SortByJudgedError(&screened);
   // Keep the best start per (effect, location, held parameters), then refine the most promising ones.
   std::vector<Candidate> unique;
   for (const auto& c : screened) {
@@ -860,7 +865,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // refinement compares its fits with (MergeBetter).
   if (screening_comparison) {
     unique = score_on(unique, search, search_scale);
-    std::sort(unique.begin(), unique.end(), [](const Candidate& a, const Candidate& b) { return JudgedError(a) < JudgedError(b); });
+    SortByJudgedError(&unique);
   }
   // Refinement continues from where screening stopped: the effect's and the model's parameters. One
   // effect takes at most kMaxRefinedPerEffect of the places: the 22 channels' sensor-geometry
