@@ -548,6 +548,9 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // one it receives.
   DiagnoseOptions d = options.diagnose;
   d.progress = options.progress;
+  // A round's diagnosis stops as soon as the model without a new effect, refitted from where a leader's
+  // fit left its parameters, is as near the floor as ends the rounds (DiagnoseOptions::stop_at_times_floor).
+  d.stop_at_times_floor = options.rounds_above_times_floor;
   if (d.as_given.empty()) {
     for (const auto& p : model::ListParameters(spec)) d.as_given[p.name] = model::GetParameter(spec, p);
   }

@@ -131,6 +131,62 @@ TEST(Diagnose, ClaimsNothingWithoutAnEffect) {
             1);
 }
 
+// DiagnoseOptions::stop_at_times_floor: effect-free data, the baseline fit cut to 2 iterations from the
+// nominal model. Refitted from where a screening's fit with a candidate (4 iterations more) left the
+// model's parameters, the model without an effect gets lower. With the threshold just below the
+// baseline's error, the diagnosis stops there, claims nothing and scores every candidate on all
+// frequencies; with it at half the floor, which no model reaches, the search runs on, as without it.
+TEST(Diagnose, StopsWhenTheModelRefittedFromTheLeadersReachesTheThreshold) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions hidden;
+  hidden.num_effects = 0;
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 7, hidden);
+  DiagnoseOptions options = QuietOptions();
+  const model::ModelSpec start = nominal;
+  options.effects = {"payload", "structural-damping"};
+  options.baseline_iterations = 2;
+  CutToScreening(&options, 2);
+  std::vector<std::string> lines;
+  options.progress = [&](const std::string& line) {
+    std::cout << line << std::endl;
+    lines.push_back(line);
+  };
+  auto said = [&](const std::string& text) {
+    return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  };
+  const DiagnoseSummary searched = Diagnose(start, c.measurement, options);
+  std::cout << searched.BriefReport() << "time " << searched.time_s << " s\n";
+  ASSERT_TRUE(searched.noise_floor.known);
+  const double floor = searched.noise_floor.floor;
+  EXPECT_TRUE(searched.stopped_at_floor.empty());
+  EXPECT_TRUE(said("refining the best"));
+
+  lines.clear();
+  options.stop_at_times_floor = 0.5;
+  const DiagnoseSummary unreachable = Diagnose(start, c.measurement, options);
+  EXPECT_TRUE(unreachable.stopped_at_floor.empty());
+  EXPECT_TRUE(said("refining the best"));
+  EXPECT_EQ(unreachable.error_baseline, searched.error_baseline);
+
+  lines.clear();
+  options.stop_at_times_floor = 0.999 * searched.error_baseline / floor;
+  const DiagnoseSummary stopped = Diagnose(start, c.measurement, options);
+  std::cout << stopped.BriefReport() << "time " << stopped.time_s << " s\n";
+  EXPECT_EQ(stopped.stopped_at_floor, "screening");
+  EXPECT_FALSE(said("refining the best"));
+  EXPECT_LE(stopped.error_baseline, options.stop_at_times_floor * floor);
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  EXPECT_DOUBLE_EQ(stopped.error_baseline, comparison.Error(stopped.baseline));
+  EXPECT_FALSE(stopped.effect_found);
+  ASSERT_FALSE(stopped.candidates.empty());
+  for (const Candidate& candidate : stopped.candidates) {
+    EXPECT_FALSE(candidate.helps) << candidate.with;
+    EXPECT_NEAR(candidate.error_after, comparison.Error(ApplyCandidate(stopped, candidate)), 1e-12 * candidate.error_after)
+        << candidate.with;
+  }
+  EXPECT_EQ(stopped.verdict.rfind("Done:", 0), 0u) << stopped.verdict;
+}
+
 // Physically absurd fits are named as such: a payload heavier than the whole stack, an offset at the
 // bound of its search range; ordinary values are not.
 TEST(ImplausibleBecause, HeavierThanTheStackOrAtABound) {

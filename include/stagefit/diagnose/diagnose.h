@@ -99,6 +99,15 @@ struct DiagnoseOptions {
   /// loops of eval_loop's seeds 73000-73005 ended with the same effects in 0.91x the time, and on the
   /// fresh seeds 77000 two two-effect cases more were explained (docs/loop-history.md, Time).
   int max_screening_frequencies = 200;
+  /// When > 0 and the noise floor is known: after the screening and again after the refinement, the
+  /// model without a new effect is refitted from the model parameters of the `num_stop_starts` leaders'
+  /// fits; when one such refit ends within this many times the noise floor, the diagnosis stops there:
+  /// that model is its baseline, and no effect is sought (DiagnoseSummary::stopped_at_floor). Not
+  /// tried on a baseline above far_times_floor, which an effect is missing from. 0: the
+  /// search runs to its end. The loop passes its LoopOptions::rounds_above_times_floor: a model that
+  /// near the floor ends its rounds anyway.
+  double stop_at_times_floor = 0;
+  int num_stop_starts = 2;
   int num_finished = 3;         ///< leaders finished on all frequencies after a thinned search
   int finish_iterations = 4;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
@@ -248,6 +257,10 @@ struct DiagnoseSummary {
   model::ModelSpec baseline;     ///< the fitted model without effects
   std::vector<Candidate> candidates;   ///< ranked, best first
   bool effect_found = false;     ///< the best candidate helps
+  /// The stage ("screening" or "refinement") after which the model without a new effect, refitted from a
+  /// leader's model parameters, reached DiagnoseOptions::stop_at_times_floor and the search stopped;
+  /// empty when it ran to its end. The candidates are then listed as that stage left them, not claimed.
+  std::string stopped_at_floor;
   std::string verdict;           ///< one paragraph
   compare::NoiseFloor noise_floor;  ///< of the comparison (unknown without coherence)
   // Where.
