@@ -142,7 +142,6 @@ TEST(Diagnose, StopsWhenTheModelRefittedFromTheLeadersReachesTheThreshold) {
   hidden.num_effects = 0;
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 7, hidden);
   DiagnoseOptions options = QuietOptions();
-  const model::ModelSpec start = nominal;
   options.effects = {"payload", "structural-damping"};
   options.baseline_iterations = 2;
   CutToScreening(&options, 2);
@@ -154,7 +153,7 @@ TEST(Diagnose, StopsWhenTheModelRefittedFromTheLeadersReachesTheThreshold) {
   auto said = [&](const std::string& text) {
     return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
   };
-  const DiagnoseSummary searched = Diagnose(start, c.measurement, options);
+  const DiagnoseSummary searched = Diagnose(nominal, c.measurement, options);
   std::cout << searched.BriefReport() << "time " << searched.time_s << " s\n";
   ASSERT_TRUE(searched.noise_floor.known);
   const double floor = searched.noise_floor.floor;
@@ -163,14 +162,14 @@ TEST(Diagnose, StopsWhenTheModelRefittedFromTheLeadersReachesTheThreshold) {
 
   lines.clear();
   options.stop_at_times_floor = 0.5;
-  const DiagnoseSummary unreachable = Diagnose(start, c.measurement, options);
+  const DiagnoseSummary unreachable = Diagnose(nominal, c.measurement, options);
   EXPECT_TRUE(unreachable.stopped_at_floor.empty());
   EXPECT_TRUE(said("refining the best"));
   EXPECT_EQ(unreachable.error_baseline, searched.error_baseline);
 
   lines.clear();
   options.stop_at_times_floor = 0.999 * searched.error_baseline / floor;
-  const DiagnoseSummary stopped = Diagnose(start, c.measurement, options);
+  const DiagnoseSummary stopped = Diagnose(nominal, c.measurement, options);
   std::cout << stopped.BriefReport() << "time " << stopped.time_s << " s\n";
   EXPECT_EQ(stopped.stopped_at_floor, "screening");
   EXPECT_FALSE(said("refining the best"));
