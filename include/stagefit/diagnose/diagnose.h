@@ -61,7 +61,7 @@ struct DiagnoseOptions {
   /// Effects to try (catalogue names); empty = the whole catalogue.
   std::vector<std::string> effects;
   int screening_iterations = 4;   ///< iterations of the short fit of every candidate
-  int num_refined = 10;           ///< candidates refitted fully after screening
+  int num_refined = 5;            ///< candidates refitted fully after screening (docs/diagnose.md)
   int refine_iterations = 30;
   int num_second_starts = 3;      ///< leaders refitted from the model's parameters as given
   int baseline_iterations = 50;
