@@ -462,6 +462,7 @@ EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& com
   options.max_iterations = effect_options.max_iterations;
   options.function_tolerance = 1e-8;
   options.initial_trust_region_radius = effect_options.initial_trust_region_radius;
+  options.stall_iterations = effect_options.stall_iterations;
   options.projected_line_search = true;  // a screening fit has 4 iterations
   options.analyse_optimum = false;        // candidates are ranked by their error alone
   EffectFit result;
@@ -497,6 +498,7 @@ EffectsFit FitEffects(const model::ModelSpec& base, const compare::Comparison& c
   options.max_iterations = effect_options.max_iterations;
   options.function_tolerance = 1e-8;
   options.initial_trust_region_radius = effect_options.initial_trust_region_radius;
+  options.stall_iterations = effect_options.stall_iterations;
   options.projected_line_search = true;
   options.analyse_optimum = false;
   EffectsFit result;
@@ -788,7 +790,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // differenced, and with a joint offset in the model a second round's screening took twice the first's.
   const std::vector<std::string>& screening_params = options.hold_effects_in_screening ? options.params : params;
   auto run = [&](const std::vector<Try>& list, int iterations, bool refined, bool probe_basins,
-                 const compare::Comparison& on, const Scale& scale, double trust_region_radius = EffectFitOptions{}.initial_trust_region_radius) {
+                 const compare::Comparison& on, const Scale& scale, double trust_region_radius = EffectFitOptions{}.initial_trust_region_radius,
+                 int stall_iterations = 0) {
     const std::vector<std::string>& fitted = refined ? params : screening_params;
     std::vector<Candidate> out(list.size());
     std::vector<char> ok(list.size(), 0);  // not vector<bool>: its elements share words, written from several threads
@@ -802,6 +805,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         EffectFitOptions fit_options;
         fit_options.max_iterations = iterations;
         fit_options.probe_basins = probe_basins;
+        fit_options.stall_iterations = stall_iterations;
         fit_options.held = list[i].held;
         // A sensor-geometry correction starts from the turn the other channels see (EstimateChannelTurns),
         // near its value: on one case a 15-degree turn's fit ended at 5x the floor with long first steps,
@@ -881,6 +885,28 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     return with;
   };
+  // The model without a new effect refitted from `*spec`, in place: from its parameters as they are, or
+  // (starts > 1) from them and random draws around them (fit::FitOptions::num_starts). Its error on all
+  // frequencies; +infinity when the fit fails.
+  auto refit_baseline = [&](model::ModelSpec* spec, int starts) {
+    fit::FitOptions fo;
+    fo.max_iterations = options.baseline_iterations;
+    fo.num_starts = starts;
+    fo.stall_iterations = options.stall_iterations;
+    try {
+      // Several starts, with their basin probes, on the search grid; the best finished on all
+      // frequencies: at 1000 frequencies the three starts on all of them took 2-4 s of a diagnosis.
+      if (starts > 1 && thinned_comparison) {
+        fit::FitModel(*spec, search, model_params, fo);
+        fo.num_starts = 1;
+        fo.max_probe_rounds = 0;
+      }
+      fit::FitModel(*spec, comparison, model_params, fo);
+      return comparison.Error(*spec);
+    } catch (const std::exception&) {
+      return std::numeric_limits<double>::infinity();
+    }
+  };
   auto stop_at_floor = [&](const char* stage) {
     // Only a baseline above that: at the floor the search is asked for (the loop's round after a hold,
     // LoopOptions::hold_rounds, runs even there). And not one far from the floor (far_times_floor): its
@@ -897,13 +923,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     std::vector<double> errors(count, std::numeric_limits<double>::infinity());
     for_each_candidate(count, [&](size_t i) {
       refits[i] = baseline_with(unique[i].model_parameters);
-      fit::FitOptions fo;
-      fo.max_iterations = options.baseline_iterations;
-      try {
-        fit::FitModel(refits[i], comparison, model_params, fo);
-        errors[i] = comparison.Error(refits[i]);
-      } catch (const std::exception&) {
-      }
+      errors[i] = refit_baseline(&refits[i], 1);
     });
     if (count == 0) return false;
     const size_t best = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
@@ -1019,7 +1039,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         leaders.back().start = as_given;
       }
       say(Format("fitting the best %.0f to convergence", static_cast<double>(std::min<size_t>(unique.size(), options.num_polished))));
-      MergeBetter(run(leaders, options.polish_iterations, true, false, search, search_scale, kPolishTrustRegionRadius), &unique);
+      MergeBetter(run(leaders, options.polish_iterations, true, false, search, search_scale, kPolishTrustRegionRadius,
+                      options.stall_iterations),
+                  &unique);
     }
     // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
     // and the leaders are finished there (their optimum moves a little with the grid).
@@ -1053,24 +1075,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       refits[0].spec = baseline_with(unique[0].model_parameters);
       refits[0].from = "the model parameters of " + unique[0].with;
       if (round == 0 && options.refit_starts > 1) refits.push_back({spec_as_given, options.refit_starts, "the model as given"});
-      for_each_candidate(refits.size(), [&](size_t i) {
-        Refit& r = refits[i];
-        fit::FitOptions fo;
-        fo.max_iterations = options.baseline_iterations;
-        fo.num_starts = r.starts;
-        try {
-          // Several starts, with their basin probes, on the search grid; the best finished on all
-          // frequencies: at 1000 frequencies the three starts on all of them took 2-4 s of a diagnosis.
-          if (r.starts > 1 && thinned_comparison) {
-            fit::FitModel(r.spec, search, model_params, fo);
-            fo.num_starts = 1;
-            fo.max_probe_rounds = 0;
-          }
-          fit::FitModel(r.spec, comparison, model_params, fo);
-          r.error = comparison.Error(r.spec);
-        } catch (const std::exception&) {
-        }
-      });
+      for_each_candidate(refits.size(), [&](size_t i) { refits[i].error = refit_baseline(&refits[i].spec, refits[i].starts); });
       const Refit& best = *std::min_element(refits.begin(), refits.end(), [](const Refit& a, const Refit& b) { return a.error < b.error; });
       if (!(best.error < summary.error_baseline)) break;
       say("baseline refitted from " + best.from + Format(": error %.4f -> %.4f", summary.error_baseline, best.error));

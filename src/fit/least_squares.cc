@@ -183,6 +183,28 @@ class ProgressCallback final : public ceres::IterationCallback {
   Clock::time_point t0_;
 };
 
+// Stops a Ceres run whose lowest error has fallen by less than FitOptions::stall_relative_decrease of
+// itself over the last FitOptions::stall_iterations iterations.
+class StallCallback final : public ceres::IterationCallback {
+ public:
+  StallCallback(int iterations, double relative_decrease) : iterations_(iterations), relative_decrease_(relative_decrease) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    const double error = std::sqrt(2.0 * summary.cost);
+    lowest_.push_back(lowest_.empty() ? error : std::min(lowest_.back(), error));
+    const size_t n = lowest_.size();
+    if (n > static_cast<size_t>(iterations_) &&
+        lowest_[n - 1 - static_cast<size_t>(iterations_)] - lowest_[n - 1] < relative_decrease_ * lowest_[n - 1]) {
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  int iterations_;
+  double relative_decrease_;
+  std::vector<double> lowest_;  // the lowest error up to each iteration
+};
+
 StageResult RunCeres(const ceres::CostFunction& cost, const ParameterMap& map, const Eigen::VectorXd& theta0,
                      const FitOptions& options, const FitProgress& base, Clock::time_point t0) {
   StageResult result;
@@ -217,6 +239,11 @@ StageResult RunCeres(const ceres::CostFunction& cost, const ParameterMap& map, c
   if (options.progress) {
     callback = std::make_unique<ProgressCallback>(options, base, t0);
     solver_options.callbacks.push_back(callback.get());
+  }
+  std::unique_ptr<StallCallback> stall;
+  if (options.stall_iterations > 0) {
+    stall = std::make_unique<StallCallback>(options.stall_iterations, options.stall_relative_decrease);
+    solver_options.callbacks.push_back(stall.get());
   }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);

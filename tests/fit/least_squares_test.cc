@@ -395,5 +395,46 @@ TEST(Solve, ProgressCallbackSeesDecreasingCost) {
   EXPECT_NEAR(costs.back(), summary.final_cost, 1e-12 + 1e-9 * summary.final_cost);
 }
 
+TEST(Solve, StallStopEndsAtTheFirstIterationWhoseWindowLoweredTheErrorByLessThanItsShare) {
+  const ExponentialDecay problem = MakeDecay(23);
+  std::vector<ParameterSpec> parameters = DecayParameters();
+  parameters[1].initial = 8.0;  // far from tau = 0.5: the error falls by a few % an iteration at the end
+  FitOptions options;
+  options.initial_trust_region_radius = 0.1;
+  std::vector<double> errors;
+  options.progress = [&](const FitProgress& progress) { errors.push_back(std::sqrt(2.0 * progress.cost)); };
+  const FitSummary free_run = Solve(problem, parameters, options);
+  const std::vector<double> free_errors = errors;
+
+  // A share this large stops the fit a few iterations before Ceres' own tolerances would.
+  constexpr int kWindow = 2;
+  constexpr double kShare = 0.3;
+  options.stall_iterations = kWindow;
+  options.stall_relative_decrease = kShare;
+  errors.clear();
+  const FitSummary stalled = Solve(problem, parameters, options);
+  // The rule, applied to the errors of the free run: the first iteration k >= kWindow whose lowest
+  // error is less than kShare of itself below the lowest kWindow iterations before.
+  std::vector<double> lowest(free_errors.size());
+  for (size_t k = 0; k < free_errors.size(); ++k) lowest[k] = k == 0 ? free_errors[0] : std::min(lowest[k - 1], free_errors[k]);
+  size_t expected_stop = free_errors.size();
+  for (size_t k = kWindow; k < lowest.size(); ++k) {
+    if (lowest[k - kWindow] - lowest[k] < kShare * lowest[k]) {
+      expected_stop = k;
+      break;
+    }
+  }
+  ASSERT_LT(expected_stop + 1, free_errors.size()) << "the rule would not stop this fit before its tolerances";
+  // The same path up to the stop, and not one iteration further.
+  ASSERT_EQ(errors.size(), expected_stop + 1);
+  for (size_t k = 0; k < errors.size(); ++k) EXPECT_EQ(errors[k], free_errors[k]) << "iteration " << k;
+  EXPECT_EQ(stalled.status, FitStatus::kConverged);
+  EXPECT_NEAR(stalled.final_error, lowest[expected_stop], 1e-12 * lowest[expected_stop]);
+  EXPECT_GE(stalled.final_error, free_run.final_error);
+  // Stopped where the error fell by less than kShare over kWindow iterations, near the optimum: within
+  // kShare of it here (the error falls geometrically at the end).
+  EXPECT_LT(stalled.final_error, (1.0 + kShare) * free_run.final_error);
+}
+
 }  // namespace
 }  // namespace stagefit::fit

@@ -108,6 +108,12 @@ struct DiagnoseOptions {
   /// near the floor ends its rounds anyway.
   double stop_at_times_floor = 0;
   int num_stop_starts = 2;
+  /// The leaders' fits to convergence and the refits of the model without a new effect (the stop checks
+  /// above and procedure step 3) stop where their error has fallen by less than 1e-4 of itself over this
+  /// many iterations (fit::FitOptions::stall_iterations; 0: at their budget or Ceres' own tolerances).
+  /// Such fits crawled for tens of iterations, a second of a diagnosis each, for changes of their error
+  /// of 1e-6 to 1e-4 of itself (docs/diagnose.md).
+  int stall_iterations = 10;
   int num_finished = 3;         ///< leaders finished on all frequencies after a thinned search
   int finish_iterations = 4;
   double min_relative_improvement = 0.05;  ///< error must fall by this share to count (header)
@@ -398,6 +404,7 @@ struct EffectFitOptions {
   /// fit near its optimum: long first steps threw a turned sensor's fit, 0.3 rad from its start, into a
   /// basin at 3x the floor.
   double initial_trust_region_radius = 1e4;
+  int stall_iterations = 0;  ///< fit::FitOptions::stall_iterations
 };
 EffectFit FitEffect(const model::ModelSpec& base, const compare::Comparison& comparison, const model::Effect& effect,
                     const std::vector<std::string>& params, const EffectFitOptions& options = {});

@@ -153,6 +153,12 @@ struct FitOptions {
   double function_tolerance = 1e-10;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
+  /// Ceres: also stop (converged) when the error ||r|| has fallen by less than `stall_relative_decrease`
+  /// of itself over the last `stall_iterations` iterations (0: never). A fit crawling along a valley
+  /// lowers its cost by more than function_tolerance at every step and can run its whole budget for a
+  /// change of its error far below the noise's (docs/fitting.md, "Stall stop").
+  int stall_iterations = 0;
+  double stall_relative_decrease = 1e-4;
   /// NLopt: algorithm name (nlopt_algorithm_from_string), evaluation budget per start, relative
   /// tolerance on the objective and on theta.
   std::string nlopt_algorithm = "LN_BOBYQA";
