@@ -919,13 +919,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     const double begun = Clock();
     const size_t count = std::min<size_t>(unique.size(), static_cast<size_t>(std::max(options.num_stop_starts, 0)));
+    if (count == 0) return false;
     std::vector<model::ModelSpec> refits(count);
     std::vector<double> errors(count, std::numeric_limits<double>::infinity());
     for_each_candidate(count, [&](size_t i) {
       refits[i] = baseline_with(unique[i].model_parameters);
       errors[i] = refit_baseline(&refits[i], 1);
     });
-    if (count == 0) return false;
     const size_t best = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
     if (!(errors[best] < summary.error_baseline) || !(errors[best] <= options.stop_at_times_floor * summary.noise_floor.floor)) {
       say(Format("the model without a new effect refitted from the best %.0f after the ", static_cast<double>(count)) + stage +
