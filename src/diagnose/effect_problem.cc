@@ -89,6 +89,11 @@ std::unique_ptr<const fit::ProbeCosts> EffectProblem::PrepareProbeCosts(const Ei
   return fit::MakeParameterProbeCosts(*comparison_, spec, model_params_, p, static_cast<int>(effect_specs_.size()));
 }
 
+std::unique_ptr<fit::LeastSquaresProblem> EffectProblem::Clone() const {
+  return std::make_unique<EffectProblem>(base_, *comparison_, effects_, effect_specs_, effect_of_, effect_index_,
+                                         model_params_);
+}
+
 double EffectProblem::Step(int i, double value) const {
   const fit::ParameterSpec& s = effect_specs_[i];
   if (s.log_scale) return 1e-5 * std::abs(value);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <sstream>
 
@@ -764,18 +765,26 @@ FitSummary Solve(const LeastSquaresProblem& problem, const std::vector<Parameter
 
 namespace {
 
+// How many problems `num_tasks` tasks can run on side by side: `problem` and its clones, made up to
+// one per extra thread (none when the problem cannot be cloned). Task t of a ParallelFor over that
+// many runs on `problem` (t = 0) or (*clones)[t - 1]: a problem is not evaluated from two threads.
+int PrepareClones(const LeastSquaresProblem& problem, std::vector<std::unique_ptr<LeastSquaresProblem>>* clones,
+                  int num_tasks) {
+  const int workers = WorkersFor(num_tasks);
+  while (static_cast<int>(clones->size()) < workers - 1) {
+    auto clone = problem.Clone();
+    if (!clone) break;
+    clones->push_back(std::move(clone));
+  }
+  return 1 + std::min(static_cast<int>(clones->size()), workers - 1);
+}
+
 // The probe with the lowest cost below `threshold` (the first such in order on ties), or an empty
 // vector. Evaluated on up to 1 + clones threads when the problem can be cloned.
 Eigen::VectorXd BestProbe(const LeastSquaresProblem& problem, std::vector<std::unique_ptr<LeastSquaresProblem>>& clones,
                           const ProbeCosts* fast, const std::vector<Eigen::VectorXd>& probes, double threshold) {
   const int num_probes = static_cast<int>(probes.size());
-  const int workers = WorkersFor(num_probes);
-  while (static_cast<int>(clones.size()) < workers - 1) {
-    auto clone = problem.Clone();
-    if (!clone) break;
-    clones.push_back(std::move(clone));
-  }
-  const int used = 1 + static_cast<int>(clones.size());
+  const int used = PrepareClones(problem, &clones, num_probes);
   std::vector<double> cost(num_probes, kInf);
   std::vector<Eigen::VectorXd> r(used);
   ParallelFor(used, [&](int worker, int) {
@@ -865,20 +874,41 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
       best = BestProbe(problem, clones, fast.get(), probes, threshold);
     }
     if (best.size() == 0 && options.bound_reset_iterations > 0) {
-      // Parameters at a bound: set back to their initial value, the others refitted shortly.
+      // Parameters at a bound: each set back to its initial value, the others refitted shortly. The
+      // refits are independent: they run side by side on the problem and its clones, the k-th on the
+      // (k mod used)-th (a core left idle by the caller's partner fits takes a share: the last candidate
+      // of a diagnosis' refinement ran its resets one after the other on one core). The lowest one
+      // below the threshold is kept, the first in order on ties: the numbers of one thread.
       FitOptions reset_options = restart_options;
       reset_options.max_iterations = options.bound_reset_iterations;
       reset_options.analyse_optimum = false;
-      double best_cost = threshold;
+      std::mutex progress_mutex;
+      if (options.progress) {
+        reset_options.progress = [&](const FitProgress& q) {
+          const std::lock_guard<std::mutex> lock(progress_mutex);
+          options.progress(q);
+        };
+      }
+      std::vector<size_t> at_bound;
       for (size_t i = 0; i < start.size(); ++i) {
         const ParameterSpec& s = start[i];
-        if (!s.log_scale || !(std::abs(std::log(p[i] / s.upper)) < kAtBound || std::abs(std::log(p[i] / s.lower)) < kAtBound)) {
-          continue;
+        if (s.log_scale && (std::abs(std::log(p[i] / s.upper)) < kAtBound || std::abs(std::log(p[i] / s.lower)) < kAtBound)) {
+          at_bound.push_back(i);
         }
-        std::vector<ParameterSpec> from = start;
-        for (size_t j = 0; j < from.size(); ++j) from[j].initial = std::clamp(p[j], from[j].lower, from[j].upper);
-        from[i].initial = parameters[i].initial;
-        const FitSummary reset = Solve(problem, from, reset_options);
+      }
+      std::vector<FitSummary> resets(at_bound.size());
+      const int used = PrepareClones(problem, &clones, static_cast<int>(at_bound.size()));
+      ParallelFor(used, [&](int task, int) {
+        const LeastSquaresProblem& on = task == 0 ? problem : *clones[task - 1];
+        for (size_t k = static_cast<size_t>(task); k < at_bound.size(); k += static_cast<size_t>(used)) {
+          std::vector<ParameterSpec> from = start;
+          for (size_t j = 0; j < from.size(); ++j) from[j].initial = std::clamp(p[j], from[j].lower, from[j].upper);
+          from[at_bound[k]].initial = parameters[at_bound[k]].initial;
+          resets[k] = Solve(on, from, reset_options);
+        }
+      });
+      double best_cost = threshold;
+      for (const FitSummary& reset : resets) {
         evaluations += reset.num_evaluations;
         if (reset.status != FitStatus::kFailed && reset.final_cost < best_cost) {
           best_cost = reset.final_cost;

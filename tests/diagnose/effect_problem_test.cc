@@ -8,6 +8,7 @@
 
 #include <cctype>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -179,6 +180,17 @@ TEST(EffectProblemSeveral, ColumnsOfEveryEffectMatchDifferences) {
     EXPECT_LE((J.col(i) - fd).norm(), 1e-5 * fd.norm() + rounding) << s.name;
   }
   EXPECT_GT(J.col(4).norm(), 0.0);  // the second effect's column is not empty
+
+  // A clone (fit::SolveWithProbes runs probes and bound resets on clones side by side) evaluates to
+  // the same bits, here after the original's evaluations above have filled its workspaces.
+  const std::unique_ptr<fit::LeastSquaresProblem> clone = problem.Clone();
+  ASSERT_NE(clone, nullptr);
+  ASSERT_EQ(clone->num_parameters(), problem.num_parameters());
+  Eigen::VectorXd r_clone;
+  Eigen::MatrixXd J_clone;
+  ASSERT_TRUE(clone->Evaluate(p, &r_clone, &J_clone));
+  EXPECT_TRUE(r_clone == r);
+  EXPECT_TRUE(J_clone == J);
 }
 
 }  // namespace

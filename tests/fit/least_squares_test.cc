@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/parallel.h"
 
 namespace stagefit::fit {
 namespace {
@@ -165,6 +167,68 @@ TEST(SolveWithProbes, TakesTheProbesCostsFromTheProblemWhereItCanAndEvaluatesThe
   SolveWithProbes(off, specs, options);
   EXPECT_EQ(off.costed, 0);
   EXPECT_EQ(off.evaluations, evaluated.evaluations);
+}
+
+// Three stiffness-like parameters whose optimum lies beyond their upper bounds (r_k = p_k / t_k - 1
+// with t_k above them, and a term coupling neighbours so that a refit takes iterations): the fit ends
+// with all three at their bounds, and SolveWithProbes resets each one. Clonable; counts its clones and
+// the evaluations with a Jacobian made on them (a fit's; a probe evaluates residuals only).
+class BeyondBounds final : public LeastSquaresProblem {
+ public:
+  struct Counts {
+    std::atomic<int> clones{0};
+    std::atomic<int> clone_jacobians{0};
+  };
+  BeyondBounds(Counts* counts, bool is_clone) : counts_(counts), is_clone_(is_clone) {}
+  int num_parameters() const override { return 3; }
+  int num_residuals() const override { return 5; }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    if (is_clone_ && J != nullptr) ++counts_->clone_jacobians;
+    r->resize(5);
+    for (int k = 0; k < 3; ++k) (*r)[k] = p[k] / kTarget - 1.0;
+    for (int k = 0; k < 2; ++k) (*r)[3 + k] = 0.1 * std::log(p[k] / p[k + 1]);
+    if (J != nullptr) {
+      J->setZero(5, 3);
+      for (int k = 0; k < 3; ++k) (*J)(k, k) = 1.0 / kTarget;
+      for (int k = 0; k < 2; ++k) {
+        (*J)(3 + k, k) = 0.1 / p[k];
+        (*J)(3 + k, k + 1) = -0.1 / p[k + 1];
+      }
+    }
+    return true;
+  }
+  std::unique_ptr<LeastSquaresProblem> Clone() const override {
+    ++counts_->clones;
+    return std::make_unique<BeyondBounds>(counts_, true);
+  }
+  static constexpr double kTarget = 100.0;
+
+ private:
+  Counts* counts_;
+  bool is_clone_;
+};
+
+TEST(SolveWithProbes, BoundResetsRunSideBySideOnClonesWithTheResultOfOneThread) {
+  std::vector<ParameterSpec> specs;
+  for (const char* name : {"a", "b", "c"}) specs.push_back({name, "N/m", 1.0, 0.01, 10.0, true});
+  FitSummary summary[2];
+  BeyondBounds::Counts counts[2];
+  for (const int threads : {1, 2}) {
+    SetMaxThreads(threads);
+    summary[threads - 1] = SolveWithProbes(BeyondBounds(&counts[threads - 1], false), specs, FitOptions{});
+  }
+  SetMaxThreads(0);
+  // All three end at their upper bound: the resets had something to do.
+  for (const auto& e : summary[1].parameters) EXPECT_NEAR(e.value, 10.0, 1e-6) << e.name;
+  // On one thread no clone; on two a reset's fit ran on the clone.
+  EXPECT_EQ(counts[0].clones, 0);
+  EXPECT_EQ(counts[1].clones, 1);
+  EXPECT_GT(counts[1].clone_jacobians, 0);
+  // And nothing changed: the same optimum, cost and number of evaluations.
+  EXPECT_EQ(summary[0].final_cost, summary[1].final_cost);
+  EXPECT_EQ(summary[0].num_evaluations, summary[1].num_evaluations);
+  EXPECT_TRUE(summary[0].values() == summary[1].values());
 }
 
 constexpr double kTrueA = 2.0;

@@ -63,6 +63,9 @@ class EffectProblem final : public fit::LeastSquaresProblem {
   /// The probes of the model's joint stiffnesses, dampings and couplings (fit::ParameterProbeCosts)
   /// around `p`; a point that changes an effect's parameter is left to Evaluate().
   std::unique_ptr<const fit::ProbeCosts> PrepareProbeCosts(const Eigen::VectorXd& p) const override;
+  /// The same problem with its own workspaces (fit::SolveWithProbes runs its probes and bound resets on
+  /// clones side by side).
+  std::unique_ptr<fit::LeastSquaresProblem> Clone() const override;
 
   /// The (first) effect with the effect parameters of `p`.
   model::Effect EffectAt(const Eigen::VectorXd& p) const;
