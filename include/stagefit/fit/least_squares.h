@@ -293,8 +293,9 @@ inline constexpr double kSeriesProbeShares[] = {0.1, 0.5, 0.9};
 /// kSeriesProbeShares, to the share of the initial values and to 1 - the current share; and the pair
 /// set back to its initial values. When none of these lowers it either, the bound resets
 /// (FitOptions::bound_reset_iterations). The fit restarts from the best probe that lowers the cost by more
-/// than probe_min_improvement and the restarted fit is kept when it ends lower. The probes of a kind are evaluated on the threads of
-/// common/parallel.h when the problem has a Clone() (the choice does not depend on the thread count).
+/// than probe_min_improvement and the restarted fit is kept when it ends lower. The probes of a kind, and
+/// the bound resets' fits, are evaluated on the threads of common/parallel.h when the problem has a
+/// Clone() (the choice does not depend on the thread count).
 /// num_evaluations counts the probes; time_s covers everything.
 FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector<ParameterSpec>& parameters,
                            const FitOptions& options, const std::vector<SeriesPair>& series = {});
