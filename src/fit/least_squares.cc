@@ -896,13 +896,17 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
           at_bound.push_back(i);
         }
       }
+      // Every reset starts from the optimum with its own parameter set back.
+      std::vector<ParameterSpec> at_optimum = start;
+      for (size_t j = 0; j < at_optimum.size(); ++j) {
+        at_optimum[j].initial = std::clamp(p[j], at_optimum[j].lower, at_optimum[j].upper);
+      }
       std::vector<FitSummary> resets(at_bound.size());
       const int used = PrepareClones(problem, &clones, static_cast<int>(at_bound.size()));
       ParallelFor(used, [&](int task, int) {
         const LeastSquaresProblem& on = task == 0 ? problem : *clones[task - 1];
         for (size_t k = static_cast<size_t>(task); k < at_bound.size(); k += static_cast<size_t>(used)) {
-          std::vector<ParameterSpec> from = start;
-          for (size_t j = 0; j < from.size(); ++j) from[j].initial = std::clamp(p[j], from[j].lower, from[j].upper);
+          std::vector<ParameterSpec> from = at_optimum;
           from[at_bound[k]].initial = parameters[at_bound[k]].initial;
           resets[k] = Solve(on, from, reset_options);
         }

@@ -169,8 +169,8 @@ TEST(SolveWithProbes, TakesTheProbesCostsFromTheProblemWhereItCanAndEvaluatesThe
   EXPECT_EQ(off.evaluations, evaluated.evaluations);
 }
 
-// Three stiffness-like parameters whose optimum lies beyond their upper bounds (r_k = p_k / t_k - 1
-// with t_k above them, and a term coupling neighbours so that a refit takes iterations): the fit ends
+// Three stiffness-like parameters whose optimum lies beyond their upper bounds (r_k = p_k / t - 1 with
+// t = kTarget above them, and a term coupling neighbours so that a refit takes iterations): the fit ends
 // with all three at their bounds, and SolveWithProbes resets each one. Clonable; counts its clones and
 // the evaluations with a Jacobian made on them (a fit's; a probe evaluates residuals only).
 class BeyondBounds final : public LeastSquaresProblem {
