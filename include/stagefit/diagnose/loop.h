@@ -14,6 +14,7 @@
 
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -222,6 +223,53 @@ std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given
 /// rise of 2.2 % (the floor's standard deviation was 0.9 % of it). Not kept when the floor is unknown.
 bool KeepModelAfterHold(double error_before, double error_after, bool all_plausible, const compare::NoiseFloor& floor,
                         const LoopOptions& options);
+
+/// A round's step that adds an effect: `with_state` is the candidate's whole fitted state (its effect
+/// `effect`, the effects already in the model and the model's parameters as the diagnosis fitted them
+/// together, diagnose::ApplyCandidate()). When its error is below `history`'s last, an "add" step is
+/// appended and it is refitted from two starts, the better kept: that state with the model's and every
+/// effect's parameters freed, and the model as given with `added` and `effect`, all their parameters
+/// fitted again together with the model's (FitEffects); a "refit" step holds the error. `current`
+/// becomes that model and `added` its effects. False, nothing changed, when the state does not lower
+/// the error.
+bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
+                       const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
+                       model::ModelSpec* current, std::vector<LoopStep>* history);
+
+/// The loop's step when a round's diagnosis finds no effect that counts by itself
+/// (DiagnoseOptions::min_relative_improvement) above LoopOptions::rounds_above_times_floor in a model
+/// with effects the loop added: its best candidate (delta BIC < 0, plausible, not dropped before) is
+/// tried beside them. An effect added in an early round can stand in for the one the data hold, and
+/// near the floor the true one then lowers the error by less than the share beside it (81511 of
+/// eval_loop: a servo of ry.Ry, a loss factor and an extra body in the hexapod; the servo was taken for
+/// an impact's correction, the loop stopped at 1.21x the floor, 0.027 off the noise-free truth, with
+/// the servo's candidate 4.4 % lower; replaced, 1.02x and 0.0040 off it); or the last effect of the
+/// data is a weak one that cannot lower the error by the share so near the floor (81706: a servo of
+/// ty.Dy beside a payload, 1.06x -> 1.03x). The candidate is added and refitted
+/// (AddEffectAndRefit) and every other added effect checked beside it (DropUnneededEffects); the new
+/// model is kept as TriedCandidateEarnsPlace() says, each model's error taken in times its own noise
+/// floor (compare::Comparison::CalcNoiseFloor(spec): a channel's correction moves it), and the floor
+/// reached counting for an effect of the model only (not model::EffectDefinition::measured_side_only:
+/// seed 200055's a3z turned 17 degrees, where h1's correction beside a3z's took the error from 1.08x
+/// to 0.95x the floor, mostly by moving the floor, and is not in the data). Otherwise `current` and `added` go back to the
+/// model before, a "back to the model before" step with its error is appended to `history`, and the
+/// result is empty; kept, it holds the "<effect>@<location>" of the effects the candidate replaced
+/// (none when it was kept beside them).
+std::optional<std::vector<std::string>> TryCandidateBesideAddedEffects(
+    const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
+    const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
+    model::ModelSpec* current, std::vector<LoopStep>* history);
+
+/// Whether TryCandidateBesideAddedEffects() keeps the model it reached: the candidate `added` was added
+/// and refitted, and the effects `removed` were then dropped as not needed (DropUnneededEffects), taking
+/// the error from `error_before` to `error_after`. Kept when the error fell, delta BIC against the
+/// model before is negative (as diagnose's header, with k the free parameters added less those
+/// removed), and either an effect was removed (a replacement adds no flexibility to a misfit, which
+/// the share a new effect must lower the error by guards against, or pays for it in BIC) or the error
+/// crossed `round_threshold` (LoopOptions::rounds_above_times_floor times the floor; NaN: never) from
+/// above: the rule by which DropUnneededEffects keeps an effect near the floor.
+bool TriedCandidateEarnsPlace(double error_before, double error_after, const model::Effect& added,
+                              const std::vector<model::Effect>& removed, double num_residuals, double round_threshold);
 
 /// The effects of `final` after those of `as_given` (the ones the loop added) that ImplausibleBecause()
 /// finds absurd, each checked against `final` without it: "<effect>@<location>: why".
