@@ -251,10 +251,10 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
 /// floor (compare::Comparison::CalcNoiseFloor(spec): a channel's correction moves it), and the floor
 /// reached counting for an effect of the model only (not model::EffectDefinition::measured_side_only:
 /// seed 200055's a3z turned 17 degrees, where h1's correction beside a3z's took the error from 1.08x
-/// to 0.95x the floor, mostly by moving the floor, and is not in the data). Otherwise `current` and `added` go back to the
-/// model before, a "back to the model before" step with its error is appended to `history`, and the
-/// result is empty; kept, it holds the "<effect>@<location>" of the effects the candidate replaced
-/// (none when it was kept beside them).
+/// to 0.95x the floor, mostly by moving the floor, and is not in the data). Otherwise `current` and
+/// `added` go back to the model before, a "back to the model before" step with its error is appended
+/// to `history`, and the result is empty; kept, it holds the "<effect>@<location>" of the effects the
+/// candidate replaced (none when it was kept beside them).
 std::optional<std::vector<std::string>> TryCandidateBesideAddedEffects(
     const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
     const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
