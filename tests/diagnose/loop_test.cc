@@ -82,11 +82,16 @@ double DistanceToTruth(const model::ModelSpec& model, const synthetic::HiddenEff
 }
 
 // `nominal` with the joint stiffnesses of the case's truth (where the loop's rounds had brought them,
-// for tests of a step after the rounds).
+// for tests of a step after the rounds) on its free DoF; an imposed one stays imposed (a truth with a
+// servo stiffness has one there).
 model::ModelSpec WithTruthStiffnesses(const model::ModelSpec& nominal, const synthetic::HiddenEffectCase& c) {
   model::ModelSpec start = nominal;
   EXPECT_EQ(c.truth.joints.size(), start.joints.size());
-  for (size_t j = 0; j < start.joints.size() && j < c.truth.joints.size(); ++j) start.joints[j].stiffness = c.truth.joints[j].stiffness;
+  for (size_t j = 0; j < start.joints.size() && j < c.truth.joints.size(); ++j) {
+    for (int d = 0; d < 6; ++d) {
+      if (!start.joints[j].imposed[d]) start.joints[j].stiffness[d] = c.truth.joints[j].stiffness[d];
+    }
+  }
   return start;
 }
 
@@ -812,13 +817,8 @@ TEST(TryCandidateBesideAddedEffects, ReplacesTheEffectAnEarlierOneStoodInFor) {
   EffectFitOptions eo;
   eo.max_iterations = 50;
   // Fitted with the stiffnesses from the truth's, where the loop's rounds had brought them (from the
-  // nominal ones the fit with h9's correction stops at 1.8x the floor); ry's Ry stays imposed.
-  model::ModelSpec start = WithTruthStiffnesses(nominal, c);
-  for (size_t j = 0; j < start.joints.size(); ++j) {
-    for (int d = 0; d < 6; ++d) {
-      if (start.joints[j].imposed[d]) start.joints[j].stiffness[d] = nominal.joints[j].stiffness[d];
-    }
-  }
+  // nominal ones the fit with h9's correction stops at 1.8x the floor).
+  const model::ModelSpec start = WithTruthStiffnesses(nominal, c);
   const EffectsFit stood_in = FitEffects(start, comparison, {h9}, options.diagnose.params, eo);
   const EffectsFit both = FitEffects(start, comparison, {stood_in.effects[0], servo}, options.diagnose.params, eo);
   const double before = comparison.Error(stood_in.spec);
