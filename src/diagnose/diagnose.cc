@@ -13,6 +13,7 @@
 
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
+#include "stagefit/common/units.h"
 #include "stagefit/diagnose/effect_problem.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/kinematics/rigid_transform.h"
@@ -48,7 +49,7 @@ constexpr int kMaxRefinedPerEffect = 4;
 
 /// A channel's direction estimated from the other channels (measurement::EstimateChannelDirections)
 /// counts as turned above this angle: at 1-3 % noise right channels came out up to 1.3 degrees off.
-constexpr double kMinEstimatedTurn = 2.0 * M_PI / 180;
+constexpr double kMinEstimatedTurn = 2.0 / kDegreesPerRadian;
 
 std::vector<model::ParameterInfo> MatchQuiet(const model::ModelSpec& spec, const std::vector<std::string>& patterns) {
   if (patterns.empty()) return {};
@@ -560,7 +561,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   const auto turns = EstimateChannelTurns(measurement, comparison, options.comparison.fmin_hz, options.comparison.fmax_hz);
   for (const auto& [channel, turn] : turns) {
     if (turn.angle_rad > kMinEstimatedTurn) {
-      summary.turned_channels.push_back({channel, turn.angle_rad * 180 / M_PI, turn.residual_share});
+      summary.turned_channels.push_back({channel, turn.angle_rad * kDegreesPerRadian, turn.residual_share});
     }
   }
   std::sort(summary.turned_channels.begin(), summary.turned_channels.end(),

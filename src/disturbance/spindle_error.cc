@@ -5,6 +5,7 @@
 
 #include "fft_internal.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 
 namespace stagefit::disturbance {
 namespace {
@@ -43,8 +44,8 @@ SphereEccentricity FitCircle(const Eigen::VectorXd& x, const Eigen::VectorXd& y,
 std::string SpindleErrorSummary::BriefReport() const {
   std::ostringstream out;
   out << revolutions << " revolutions; sphere 1 eccentricity " << eccentricity[0].amplitude_m * 1e9
-      << " nm at " << eccentricity[0].phase_rad * 180.0 / M_PI << " deg, sphere 2 "
-      << eccentricity[1].amplitude_m * 1e9 << " nm at " << eccentricity[1].phase_rad * 180.0 / M_PI
+      << " nm at " << eccentricity[0].phase_rad * kDegreesPerRadian << " deg, sphere 2 "
+      << eccentricity[1].amplitude_m * 1e9 << " nm at " << eccentricity[1].phase_rad * kDegreesPerRadian
       << " deg; axial once-per-rev " << axial_amplitude_m * 1e9 << " nm\nresidual rms:";
   for (int c = 0; c < 5; ++c) {
     out << " " << kSpindleMotionNames[c] << " " << rms[c] * 1e9 << (c < 3 ? " nm" : " nrad");

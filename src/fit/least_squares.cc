@@ -553,6 +553,15 @@ std::string ToString(FitStatus status) {
   return "failed";
 }
 
+std::function<void(const FitProgress&)> OneCallAtATime(std::function<void(const FitProgress&)> progress) {
+  if (!progress) return progress;
+  auto lock = std::make_shared<std::mutex>();
+  return [lock, progress = std::move(progress)](const FitProgress& p) {
+    const std::lock_guard<std::mutex> hold(*lock);
+    progress(p);
+  };
+}
+
 void CheckNloptAlgorithm(const std::string& name, const std::string& context) {
   LookUpNloptAlgorithm(name, context);
 }
@@ -882,13 +891,7 @@ FitSummary SolveWithProbes(const LeastSquaresProblem& problem, const std::vector
       FitOptions reset_options = restart_options;
       reset_options.max_iterations = options.bound_reset_iterations;
       reset_options.analyse_optimum = false;
-      std::mutex progress_mutex;
-      if (options.progress) {
-        reset_options.progress = [&](const FitProgress& q) {
-          const std::lock_guard<std::mutex> lock(progress_mutex);
-          options.progress(q);
-        };
-      }
+      reset_options.progress = OneCallAtATime(options.progress);
       std::vector<size_t> at_bound;
       for (size_t i = 0; i < start.size(); ++i) {
         const ParameterSpec& s = start[i];

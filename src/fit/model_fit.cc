@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <mutex>
 #include <sstream>
 
 #include "stagefit/common/error.h"
@@ -390,14 +389,8 @@ FitSummary FitModelWithBandContinuation(model::ModelSpec& spec, const measuremen
   const double error_before = comparison.Error(spec);
   // The two routes are independent: run side by side (each one's FRF evaluations helped by the other's
   // thread once it is done), their progress reported one call at a time.
-  std::mutex progress_mutex;
   FitOptions route_options = options;
-  if (options.progress) {
-    route_options.progress = [&](const FitProgress& p) {
-      const std::lock_guard<std::mutex> lock(progress_mutex);
-      options.progress(p);
-    };
-  }
+  route_options.progress = OneCallAtATime(options.progress);
   // Route 1: the stages, each from the previous one's result.
   model::ModelSpec staged = spec;
   std::vector<double> edges;

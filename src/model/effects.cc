@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 #include "stagefit/kinematics/rigid_transform.h"
 
 namespace stagefit::model {
@@ -466,8 +467,8 @@ std::vector<EffectDefinition> MakeCatalogue() {
     d.explain = [](const Effect& e) {
       return "channel " + e.location +
              Format(" is not where declared: offset (%.1f, %.1f, %.1f) mm", 1e3 * Get(e, "dx"), 1e3 * Get(e, "dy"), 1e3 * Get(e, "dz")) +
-             Format(", rotated by (%.1f, %.1f, %.1f) deg", Get(e, "rx") * 180 / M_PI, Get(e, "ry") * 180 / M_PI,
-                    Get(e, "rz") * 180 / M_PI);
+             Format(", rotated by (%.1f, %.1f, %.1f) deg", Get(e, "rx") * kDegreesPerRadian, Get(e, "ry") * kDegreesPerRadian,
+                    Get(e, "rz") * kDegreesPerRadian);
     };
     d.measured_side_only = true;
     d.redundant = SensorGeometryRedundant;

@@ -10,6 +10,7 @@
 
 #include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 #include "stagefit/kinematics/rigid_transform.h"
 
 namespace stagefit::synthetic {
@@ -378,7 +379,7 @@ if (e.name == "payload") {
     g.channel = e.location;
     g.rotation_rad = euler;
     truth.geometry_corrections.push_back(g);
-    std::snprintf(text, sizeof text, "accelerometer channel %s is rotated by %.0f deg", e.location.c_str(), angle * 180 / M_PI);
+    std::snprintf(text, sizeof text, "accelerometer channel %s is rotated by %.0f deg", e.location.c_str(), angle * kDegreesPerRadian);
   } else {
     e.location = "acquisition";
     const double tau = uniform(0.3e-3, 1.0e-3);

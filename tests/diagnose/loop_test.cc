@@ -338,11 +338,46 @@ TEST(Loop, TakesTheDiagnosisBaselineWhenItIsBetter) {
   EXPECT_EQ(comparison.Error(summary.final_model), summary.history.back().error);
 }
 
+// An extra body with its rocking in the band but not in the data is still tried as its rigid limit:
+// seed 1028's 7.2 kg payload 141 mm above the hexapod, fitted as a body with a stiff translation and its
+// rocking held at 30 Hz (its inertia m r^2 is small beside the payload's m z^2). The limit as it
+// stands is within kLocalModeSeenRise of the error, and the payload is taken.
+TEST(TakeRigidLimits, TriesTheLimitOfABodyWhoseRockingInTheBandTheDataDoNotSee) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1028, {});
+  ASSERT_EQ(c.effects.size(), 1u);
+  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
+  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
+  const double r = model::kExtraBodyRadiusOfGyration, w = 2 * M_PI * 30.0;
+  model::Effect start;
+  start.name = "extra-body";
+  start.location = "hexapod";
+  start.parameters = {{"mass", body.mass_kg}, {"k", 1e10}, {"kr", body.mass_kg * r * r * w * w}, {"z", body.com_W.z() - host.com_W.z()}};
+  model::HoldEffectParameter(&start, "kr");  // unseen, it would drift out of the band (to 1 Hz)
+  EffectFitOptions eo;
+  eo.max_iterations = 50;
+  eo.initial_trust_region_radius = 1.0;
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const EffectsFit fitted = FitEffects(nominal, comparison, {start}, {"*.k.*"}, eo);
+  const auto modes = model::FindEffectDefinition("extra-body").local_modes_hz(fitted.effects[0]);
+  const Eigen::VectorXd& f = comparison.frequency_hz();
+  ASSERT_TRUE(modes[1] > f(0) && modes[1] < f(f.size() - 1)) << fitted.effects[0].ToString();  // the rocking
+  model::ModelSpec current = fitted.spec;
+  const double error = comparison.Error(current);
+  std::vector<LoopStep> history = {{"fit", "", error}};
+  const auto taken = TakeRigidLimits(nominal, comparison, LoopOptions{}, &current, &history);
+  ASSERT_EQ(taken, std::vector<std::string>{"extra-body@hexapod -> payload@hexapod"}) << fitted.effects[0].ToString();
+  EXPECT_EQ(current.effects[0].name, "payload");
+  EXPECT_NEAR(current.effects[0].parameters.at("mass"), body.mass_kg, 0.05 * body.mass_kg);
+  EXPECT_LE(history.back().error, (1 + kRigidLimitTolerance) * error);
+}
+
 // At the floor, an added extra body whose joint the data do not show is replaced by its rigid limit:
 // a 7.2 kg payload 141 mm above the hexapod (seed 1028, brute-force data) fitted as an extra body with
 // a stiff joint (from 1e10 N/m, 1e8 Nm/rad) is taken as a payload with its mass and height, the error
 // within 1 %. An extra body whose local mode is in the band (seed 1009, 288 Hz) keeps its place, with
-// no refit: the data see the mode (model::EffectDefinition::local_modes_hz).
+// no refit: the data see the mode (model::EffectDefinition::local_modes_hz), the limit as it stands far
+// above kLocalModeSeenRise.
 TEST(TakeRigidLimits, TakesThePayloadAStiffExtraBodyIsAndKeepsALocalMode) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   EffectFitOptions eo;

@@ -4,11 +4,14 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <memory>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "stagefit/common/error.h"
@@ -498,6 +501,29 @@ TEST(Solve, StallStopEndsAtTheFirstIterationWhoseWindowLoweredTheErrorByLessThan
   // Stopped where the error fell by less than kShare over kWindow iterations, near the optimum: within
   // kShare of it here (the error falls geometrically at the end).
   EXPECT_LT(stalled.final_error, (1.0 + kShare) * free_run.final_error);
+}
+
+// Copies of the wrapper called from four threads: no two calls overlap, and every call is made.
+TEST(OneCallAtATime, RunsTheCallsOfAllItsCopiesOneAtATime) {
+  EXPECT_FALSE(OneCallAtATime({}));
+  std::atomic<int> inside{0}, most{0};
+  int calls = 0;  // not atomic: counts right only when the calls do not overlap
+  const auto progress = OneCallAtATime([&](const FitProgress&) {
+    const int now = ++inside;
+    most = std::max(most.load(), now);
+    std::this_thread::sleep_for(std::chrono::microseconds(20));
+    ++calls;
+    --inside;
+  });
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([progress] {
+      for (int i = 0; i < 100; ++i) progress(FitProgress{});
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(most.load(), 1);
+  EXPECT_EQ(calls, 400);
 }
 
 }  // namespace

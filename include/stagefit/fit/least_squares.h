@@ -212,6 +212,10 @@ struct FitOptions {
   std::function<void(const FitProgress&)> progress;
 };
 
+/// `progress` wrapped for fits that run side by side: the wrapper runs one call at a time (its copies
+/// share the lock). An empty callback stays empty.
+std::function<void(const FitProgress&)> OneCallAtATime(std::function<void(const FitProgress&)> progress);
+
 /// The estimate of one parameter.
 struct ParameterEstimate {
   std::string name;
