@@ -81,6 +81,18 @@ double DistanceToTruth(const model::ModelSpec& model, const synthetic::HiddenEff
   return (r - r_truth).norm();
 }
 
+// An extra body on the hexapod with the mass and height of the case's hidden body `body_name` and the
+// joint stiffnesses k (translations) and kr (rotations): where the rigid-limit tests start its fit.
+model::Effect ExtraBodyOnTheHexapod(const synthetic::HiddenEffectCase& c, const std::string& body_name, double k, double kr) {
+  const auto& body = c.truth.bodies[model::FindBody(c.truth, body_name)];
+  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
+  model::Effect e;
+  e.name = "extra-body";
+  e.location = "hexapod";
+  e.parameters = {{"mass", body.mass_kg}, {"k", k}, {"kr", kr}, {"z", body.com_W.z() - host.com_W.z()}};
+  return e;
+}
+
 // `nominal` with the joint stiffnesses of the case's truth (where the loop's rounds had brought them,
 // for tests of a step after the rounds) on its free DoF; an imposed one stays imposed (a truth with a
 // servo stiffness has one there).
@@ -347,12 +359,8 @@ TEST(TakeRigidLimits, TriesTheLimitOfABodyWhoseRockingInTheBandTheDataDoNotSee) 
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 1028, {});
   ASSERT_EQ(c.effects.size(), 1u);
   const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
-  const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
   const double r = model::kExtraBodyRadiusOfGyration, w = 2 * M_PI * 30.0;
-  model::Effect start;
-  start.name = "extra-body";
-  start.location = "hexapod";
-  start.parameters = {{"mass", body.mass_kg}, {"k", 1e10}, {"kr", body.mass_kg * r * r * w * w}, {"z", body.com_W.z() - host.com_W.z()}};
+  model::Effect start = ExtraBodyOnTheHexapod(c, "hidden_payload", 1e10, body.mass_kg * r * r * w * w);
   model::HoldEffectParameter(&start, "kr");  // unseen, it would drift out of the band (to 1 Hz)
   EffectFitOptions eo;
   eo.max_iterations = 50;
@@ -392,13 +400,8 @@ TEST(TakeRigidLimits, TakesThePayloadAStiffExtraBodyIsAndKeepsALocalMode) {
     const auto& body = c.truth.bodies[model::FindBody(c.truth, body_name)];
     const auto& host = c.truth.bodies[model::FindBody(c.truth, "hexapod")];
     const auto& joint = c.truth.joints[model::FindJoint(c.truth, body_name)];
-    model::Effect start;
-    start.name = "extra-body";
-    start.location = "hexapod";
-    start.parameters = {{"mass", body.mass_kg},
-                        {"k", payload ? 1e10 : joint.stiffness[0]},
-                        {"kr", payload ? 1e8 : joint.stiffness[3]},
-                        {"z", body.com_W.z() - host.com_W.z()}};
+    const model::Effect start =
+        ExtraBodyOnTheHexapod(c, body_name, payload ? 1e10 : joint.stiffness[0], payload ? 1e8 : joint.stiffness[3]);
     const auto comparison = compare::Comparison::Create(nominal, c.measurement);
     const EffectsFit fitted = FitEffects(nominal, comparison, {start}, {"*.k.*"}, eo);
     model::ModelSpec current = fitted.spec;
