@@ -461,24 +461,37 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
   }
   const Eigen::VectorXd f = LogFrequencies(options.fmin_hz, options.fmax_hz, options.num_frequencies);
   const double noise_level = uniform(options.noise_min, options.noise_max);
+  c.noise = noise_level;
   // Each effect is drawn again (location and magnitude) until it matters: alone, it changes the data
-  // by at least min_visibility noise standard deviations (RMS over all points).
-  const FrfData without = CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
-  for (int k : chosen) {
-    HiddenEffect e;
+  // by at least min_visibility noise standard deviations (RMS over all points) against the truth with
+  // the effects drawn before it; the most visible draw is kept when none does (the first rule:
+  // HiddenEffectOptions::visibility_against_no_effect).
+  const FrfData without_any = CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
+  for (size_t n = 0; n < chosen.size(); ++n) {
+    const int k = chosen[n];
+    const FrfData without = n == 0 || options.visibility_against_no_effect
+                                ? without_any
+                                : CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
+    HiddenEffect kept;
+    model::ModelSpec kept_truth;
+    std::vector<ChannelGeometry> kept_sensors;
     for (int attempt = 0; attempt < options.max_draws; ++attempt) {
       model::ModelSpec trial = truth;
       std::vector<ChannelGeometry> trial_sensors = true_sensors;
-      e = ApplyHiddenEffect(kinds[k], rng, trial, trial_sensors);
+      HiddenEffect e = ApplyHiddenEffect(kinds[k], rng, trial, trial_sensors);
       const FrfData with = CalcBruteForceFrf(trial, trial_sensors, impacts, f, FrfQuantity::kAccelerance);
       e.visibility = NoiseNormalisedDifference(with, without, noise_level);
-      if (e.visibility >= options.min_visibility || attempt + 1 == options.max_draws) {
-        truth = trial;
-        true_sensors = trial_sensors;
-        break;
+      const bool last = attempt + 1 == options.max_draws;
+      if (attempt == 0 || e.visibility > kept.visibility || (last && options.visibility_against_no_effect)) {
+        kept = e;
+        kept_truth = std::move(trial);
+        kept_sensors = std::move(trial_sensors);
       }
+      if (e.visibility >= options.min_visibility) break;
     }
-    c.effects.push_back(e);
+    truth = std::move(kept_truth);
+    true_sensors = std::move(kept_sensors);
+    c.effects.push_back(kept);
   }
   c.measurement = CalcBruteForceFrf(truth, true_sensors, impacts, f, FrfQuantity::kAccelerance);
   c.measurement.outputs = sensors;  // the declared (nominal) geometry

@@ -18,11 +18,15 @@
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
-//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--hiding NAME] [--verbose 1|2]
+//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--hiding NAME] [--draws first|own]
+//                  [--verbose 1|2]
 //   --outside-kinds: the out-of-catalogue kinds taken in turn (default plate-bending,plate-breathing,cable);
 //   --verbose 2 also prints the last diagnosis' best candidate of every effect and location (16 at most);
 //   --effects a,b tries only these effects of the catalogue;
-//   --hiding NAME runs and counts only the drawn catalogue cases that hide effect NAME (sensor-geometry, ...).
+//   --hiding NAME runs and counts only the drawn catalogue cases that hide effect NAME (sensor-geometry, ...);
+//   --draws first rebuilds the cases as the generator's first rule drew them (each effect's visibility
+//   against the truth with no effect: synthetic::HiddenEffectOptions::visibility_against_no_effect),
+//   to rerun the sets up to seed 82029; own (the default) takes it against the effects drawn before.
 //   Seeds: single-effect cases S .. S+N-1, two-effect cases S+N .., effect-free cases after them, then
 //   three-effect cases, then out-of-catalogue cases.
 
@@ -59,6 +63,8 @@ double g_rounds_above = diagnose::LoopOptions{}.rounds_above_times_floor;
 std::vector<std::string> g_effects;
 // Only the drawn cases that hide this effect are run and counted (--hiding NAME; empty: every case).
 std::string g_hiding;
+// The generator's first rule of the draws (--draws first).
+bool g_draws_as_first = false;
 
 struct Outcome {
   bool named_all = false;    // every hidden effect added (name and location)
@@ -78,7 +84,9 @@ synthetic::HiddenEffectOptions DrawOptions(uint64_t seed, int num_effects) {
   std::mt19937_64 rng(seed ^ 0x5eedULL);
   const double fmax_hz = std::uniform_int_distribution<int>(0, 1)(rng) ? 600.0 : 150.0;
   const int num_frequencies = std::uniform_int_distribution<int>(300, 1200)(rng);
-  return synthetic::EvalLoopCaseOptions(num_effects, fmax_hz, num_frequencies);
+  synthetic::HiddenEffectOptions options = synthetic::EvalLoopCaseOptions(num_effects, fmax_hz, num_frequencies);
+  options.visibility_against_no_effect = g_draws_as_first;
+  return options;
 }
 
 // The last diagnosis' leading candidates: what the loop chose from, or why it stopped.
@@ -277,7 +285,7 @@ int main(int argc, char** argv) {
     static const std::set<std::string> known = {"--cases",         "--two-effects", "--outside",    "--outside-kinds",
                                                 "--three-effects", "--effect-free", "--first-seed", "--verbose",
                                                 "--effects",       "--max-rounds",  "--space",      "--rounds-above",
-                                                "--hiding"};
+                                                "--hiding",        "--draws"};
     if (!known.count(option) || i + 1 >= argc) {
       std::fprintf(stderr, "eval_loop: %s '%s' (usage: see the head of tests/bench/eval_loop.cc)\n",
                    known.count(option) ? "no value after" : "unknown option", argv[i]);
@@ -294,6 +302,13 @@ int main(int argc, char** argv) {
     else if (option == "--verbose") verbose = std::atoi(value);
     else if (option == "--effects") g_effects = split(value);
     else if (option == "--hiding") g_hiding = value;
+    else if (option == "--draws") {
+      if (std::strcmp(value, "first") != 0 && std::strcmp(value, "own") != 0) {
+        std::fprintf(stderr, "eval_loop: --draws '%s': expected first or own\n", value);
+        return 2;
+      }
+      g_draws_as_first = std::strcmp(value, "first") == 0;
+    }
     else if (option == "--max-rounds") g_max_rounds = std::atoi(value);
     else if (option == "--rounds-above") g_rounds_above = std::atof(value);
     else if (option == "--space") g_space = compare::ParseComparisonSpace(value, "--space");

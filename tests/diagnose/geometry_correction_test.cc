@@ -266,8 +266,9 @@ TEST(FindTurnedChannel, PicksTheChannelWhoseCorrectionLeavesTheOthersConsistent)
   for (const Case& k : {Case{45020, 3, 150, 806, "a1x"}, Case{60040, 3, 150, 323, "a3z"}, Case{45014, 0, 600, 786, ""},
                         Case{100120, 2, 150, 788, "a1y"}}) {
     SCOPED_TRACE(k.seed);
-    const auto c = synthetic::MakeHiddenEffectCase(nominal, k.seed,
-                                                   synthetic::EvalLoopCaseOptions(k.num_effects, k.fmax_hz, k.num_frequencies));
+    synthetic::HiddenEffectOptions options = synthetic::EvalLoopCaseOptions(k.num_effects, k.fmax_hz, k.num_frequencies);
+    options.visibility_against_no_effect = true;  // the cases as first drawn (45020's body and turn are drawn again since)
+    const auto c = synthetic::MakeHiddenEffectCase(nominal, k.seed, options);
     const auto hidden_turn = std::find_if(c.effects.begin(), c.effects.end(), [](const auto& e) { return e.name == "sensor-geometry"; });
     const Eigen::Vector3d X = compare::Comparison::Create(nominal, c.measurement).frame_origin_W();
     const auto turned = measurement::FindTurnedChannel(c.measurement, X, ten_degrees);
@@ -303,7 +304,9 @@ TEST(FindTurnedChannel, NamesNoChannelWhenNoCorrectionLeavesTheOthersConsistent)
   for (const auto& [seed, num_effects, num_frequencies, channel] :
        {std::tuple<uint64_t, int, int, std::string>{100008, 1, 978, "h1"}, {100085, 3, 303, "h5"}}) {
     SCOPED_TRACE(seed);
-    const auto c = synthetic::MakeHiddenEffectCase(nominal, seed, synthetic::EvalLoopCaseOptions(num_effects, 150, num_frequencies));
+    synthetic::HiddenEffectOptions options = synthetic::EvalLoopCaseOptions(num_effects, 150, num_frequencies);
+    options.visibility_against_no_effect = true;  // the cases as first drawn (100085's servo is drawn again since)
+    const auto c = synthetic::MakeHiddenEffectCase(nominal, seed, options);
     for (const auto& e : c.effects) EXPECT_NE(e.name, "sensor-geometry");
     const Eigen::Vector3d X = compare::Comparison::Create(nominal, c.measurement).frame_origin_W();
     const auto estimates = measurement::EstimateChannelDirections(c.measurement, X);

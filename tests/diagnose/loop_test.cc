@@ -641,7 +641,9 @@ TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
 // With the rule off (a round threshold below any model's error) the servo goes, as it went then.
 TEST(DropUnneededEffects, KeepsAnEffectTheModelNeedsToBeAtTheFloor) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 15011, synthetic::EvalLoopCaseOptions(2, 150, 700));
+  synthetic::HiddenEffectOptions options = synthetic::EvalLoopCaseOptions(2, 150, 700);
+  options.visibility_against_no_effect = true;  // the servo as first drawn (its own visibility is below 2)
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 15011, options);
   ASSERT_EQ(c.effects.size(), 2u);
   ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "sensor-geometry@a4y");
   ASSERT_EQ(c.effects[1].name + "@" + c.effects[1].location, "servo-stiffness@ty.Dy");

@@ -129,5 +129,39 @@ TEST(HiddenEffectCase, DrawsVisibleEffectsAndValidMeasurements) {
   }
 }
 
+// A later effect's visibility is its own: the change it makes to the truth with the effects drawn
+// before it. Seed 82000 of eval_loop (150 Hz, 574 points) draws a loss factor of rz, then a drive
+// spring of ty.Dy; the spring is undone by imposing ty.Dy again. Measured against the truth with no
+// effect, the spring was taken on the loss factor's change (6.7) and recorded with it.
+TEST(HiddenEffectCase, MeasuresALaterEffectAgainstTheEffectsBeforeIt) {
+  const auto c = MakeHiddenEffectCase(model::DefaultModelSpec(), 82000, EvalLoopCaseOptions(2, 150, 574));
+  ASSERT_EQ(c.effects.size(), 2u);
+  ASSERT_EQ(c.effects[0].name, "structural-damping");
+  ASSERT_EQ(c.effects[1].name + "@" + c.effects[1].location, "servo-stiffness@ty.Dy");
+  model::ModelSpec without_spring = c.truth;
+  model::JointSpec& ty = without_spring.joints[model::FindJoint(without_spring, "ty")];
+  ASSERT_FALSE(ty.imposed[1]);
+  ty.imposed[1] = true;
+  const auto& m = c.measurement;
+  const auto with = CalcBruteForceFrf(c.truth, m.outputs, m.inputs, m.frequency_hz, measurement::FrfQuantity::kAccelerance);
+  const auto without = CalcBruteForceFrf(without_spring, m.outputs, m.inputs, m.frequency_hz, measurement::FrfQuantity::kAccelerance);
+  const double own = NoiseNormalisedDifference(with, without, c.noise);
+  EXPECT_NEAR(c.effects[1].visibility, own, 1e-9 * own);
+  EXPECT_GE(own, HiddenEffectOptions{}.min_visibility);
+}
+
+// Seed 1014 draws a drive spring of ry.Ry 20 times without reaching min_visibility: the most visible
+// draw is kept, not the last one (which the first rule kept).
+TEST(HiddenEffectCase, KeepsTheMostVisibleDrawWhenNoneReachesTheMinimum) {
+  HiddenEffectOptions first_rule;
+  first_rule.visibility_against_no_effect = true;
+  const auto kept = MakeHiddenEffectCase(model::DefaultModelSpec(), 1014, {});
+  const auto last = MakeHiddenEffectCase(model::DefaultModelSpec(), 1014, first_rule);
+  ASSERT_EQ(kept.effects.size(), 1u);
+  ASSERT_EQ(kept.effects[0].name + "@" + kept.effects[0].location, "servo-stiffness@ry.Ry");
+  EXPECT_LT(kept.effects[0].visibility, HiddenEffectOptions{}.min_visibility);
+  EXPECT_GT(kept.effects[0].visibility, last.effects[0].visibility);
+}
+
 }  // namespace
 }  // namespace stagefit::synthetic

@@ -74,7 +74,8 @@ struct HiddenEffect {
   std::string location;   ///< catalogue location, e.g. "hexapod"
   std::string description;
   /// How much the effect alone changes the noise-free data, in noise standard deviations (RMS over all
-  /// elements and frequencies of |H_with - H_without| / sigma, sigma of AddNoise's model).
+  /// elements and frequencies of |H_with - H_without| / sigma, sigma of AddNoise's model), "without"
+  /// being the truth with the effects drawn before it.
   double visibility = 0;
 };
 struct HiddenEffectCase {
@@ -83,6 +84,7 @@ struct HiddenEffectCase {
   std::vector<HiddenEffect> effects;
   measurement::FrfData measurement;
   std::vector<std::string> scattered_parameters;  ///< "<joint>.k.<Dof>" that were scattered
+  double noise = 0;  ///< the drawn noise level: AddNoise's relative and absolute parts, and visibility's sigma
 };
 struct HiddenEffectOptions {
   int num_effects = 1;              ///< 0 to 8, each of a different kind
@@ -92,9 +94,14 @@ struct HiddenEffectOptions {
   double fmin_hz = 10.0, fmax_hz = 400.0;
   int num_frequencies = 300;
   /// "Large enough to matter": an effect is drawn again (location and magnitude) until its visibility
-  /// reaches this, at most max_draws times (the last draw is kept).
+  /// reaches this, at most max_draws times (the most visible draw is kept when none reaches it).
   double min_visibility = 2.0;
   int max_draws = 20;
+  /// The first rule of the draws, kept so that cases drawn by it can be rebuilt bit for bit (the
+  /// tests that hold eval_loop's cases up to seed 82029 set it): each effect's visibility taken against
+  /// the truth with no effect (a later effect then passes on the change of the ones before it, however
+  /// little it changes the data itself) and the last draw kept when none reaches min_visibility.
+  bool visibility_against_no_effect = false;
 };
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
 
