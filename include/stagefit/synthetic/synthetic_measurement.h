@@ -97,8 +97,8 @@ struct HiddenEffectOptions {
   /// reaches this, at most max_draws times (the most visible draw is kept when none reaches it).
   double min_visibility = 2.0;
   int max_draws = 20;
-  /// The first rule of the draws, kept so that cases drawn by it can be rebuilt bit for bit (the
-  /// tests that hold eval_loop's cases up to seed 82029 set it): each effect's visibility taken against
+  /// The first rule of the draws, kept so that cases drawn by it can be rebuilt bit for bit (set by the
+  /// tests that hold such a case where the rule now draws another): each effect's visibility taken against
   /// the truth with no effect (a later effect then passes on the change of the ones before it, however
   /// little it changes the data itself) and the last draw kept when none reaches min_visibility.
   bool visibility_against_no_effect = false;
