@@ -475,13 +475,14 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
     HiddenEffect kept;
     model::ModelSpec kept_truth;
     std::vector<ChannelGeometry> kept_sensors;
-    for (int attempt = 0; attempt < options.max_draws; ++attempt) {
+    const int draws = std::max(1, options.max_draws);  // one draw at least: the effect is always applied
+    for (int attempt = 0; attempt < draws; ++attempt) {
       model::ModelSpec trial = truth;
       std::vector<ChannelGeometry> trial_sensors = true_sensors;
       HiddenEffect e = ApplyHiddenEffect(kinds[k], rng, trial, trial_sensors);
       const FrfData with = CalcBruteForceFrf(trial, trial_sensors, impacts, f, FrfQuantity::kAccelerance);
       e.visibility = NoiseNormalisedDifference(with, without, noise_level);
-      const bool last = attempt + 1 == options.max_draws;
+      const bool last = attempt + 1 == draws;
       if (attempt == 0 || e.visibility > kept.visibility || (last && options.visibility_against_no_effect)) {
         kept = e;
         kept_truth = std::move(trial);

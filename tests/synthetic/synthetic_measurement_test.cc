@@ -163,5 +163,18 @@ TEST(HiddenEffectCase, KeepsTheMostVisibleDrawWhenNoneReachesTheMinimum) {
   EXPECT_GT(kept.effects[0].visibility, last.effects[0].visibility);
 }
 
+// No draw asked for is one draw: the effect is applied, whatever its visibility.
+TEST(HiddenEffectCase, DrawsEachEffectOnceAtLeast) {
+  HiddenEffectOptions options;
+  options.max_draws = 0;
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = MakeHiddenEffectCase(nominal, 17, options);
+  ASSERT_EQ(c.effects.size(), 1u);
+  EXPECT_FALSE(c.effects[0].name.empty());
+  EXPECT_GE(c.truth.bodies.size(), nominal.bodies.size());
+  EXPECT_GE(c.truth.joints.size(), nominal.joints.size());
+  measurement::Validate(c.measurement);
+}
+
 }  // namespace
 }  // namespace stagefit::synthetic

@@ -94,7 +94,8 @@ struct HiddenEffectOptions {
   double fmin_hz = 10.0, fmax_hz = 400.0;
   int num_frequencies = 300;
   /// "Large enough to matter": an effect is drawn again (location and magnitude) until its visibility
-  /// reaches this, at most max_draws times (the most visible draw is kept when none reaches it).
+  /// reaches this, at most max_draws times and once at least (the most visible draw is kept when none
+  /// reaches it).
   double min_visibility = 2.0;
   int max_draws = 20;
   /// The first rule of the draws, kept so that cases drawn by it can be rebuilt bit for bit (set by the
