@@ -473,14 +473,21 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     model::SetEffects(without, others);
     DiagnoseOptions only = diagnose;
     only.effects = {effect.name};
-    if (diagnose.progress) diagnose.progress("seek " + key + " again at every location of its kind");
+    for (const std::string& kind : definition.also_sought_as) only.effects.push_back(kind);
+    if (diagnose.progress) {
+      std::string kinds;
+      for (const std::string& kind : definition.also_sought_as) kinds += " and as " + kind;
+      diagnose.progress("seek " + key + " again at every location of its kind" + kinds);
+    }
     DiagnoseSummary diagnosis;
     try {
       diagnosis = Diagnose(without, measurement, only);
     } catch (const std::exception&) {
       continue;
     }
-    if (!diagnosis.effect_found || diagnosis.candidates[0].effect.location == effect.location) continue;
+    if (!diagnosis.effect_found) continue;
+    const model::Effect& found = diagnosis.candidates[0].effect;
+    if (found.name == effect.name && found.location == effect.location) continue;
     // The effect in the other place, refitted from the diagnosis' state and from the model as given.
     const model::ModelSpec with = ApplyCandidate(diagnosis, diagnosis.candidates[0]);
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, with, with.effects);
@@ -488,11 +495,12 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
       trial = with;
       trial_error = e;
     }
-    // The same effect, as many parameters: a fall of more than 1 % makes it the better model (the
-    // floor's standard deviation is about 1 % of it).
+    // The same effect, or a kind it is also sought as, with as many parameters (a payload and an extra
+    // body have four each): a fall of more than 1 % makes it the better model (the floor's standard
+    // deviation is about 1 % of it).
     if (!(trial_error < 0.99 * history->back().error)) continue;
     const model::Effect& to = trial.effects.back();
-    history->push_back({"move " + key + " to " + to.location, to.ToString(), trial_error});
+    history->push_back({"move " + key + " to " + (to.name == effect.name ? to.location : Key(to)), to.ToString(), trial_error});
     moved.push_back(key + " -> " + Key(to));
     *current = trial;
   }

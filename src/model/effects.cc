@@ -354,6 +354,7 @@ std::vector<EffectDefinition> MakeCatalogue() {
       return Format("a payload of about %.1f kg, %.0f mm above", Get(e, "mass"), 1e3 * Get(e, "z")) + " the centre of mass of " +
              e.location + Format(" (%.0f mm off-axis)", 1e3 * std::hypot(Get(e, "x"), Get(e, "y")));
     };
+    d.also_sought_as = {"extra-body"};
     d.adds_mass = true;
     c.push_back(d);
   }

@@ -162,7 +162,10 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
 /// more than 1 %, the move is taken: `current` becomes that model (the moved effect last) and a "move"
 /// step is appended (the loop then checks the other added effects with DropUnneededEffects). Effects
 /// with one location (a delay) and channel corrections (located by the channels' own directions, not by
-/// the model) are not moved. Returns "<effect>@<from> -> <effect>@<to>".
+/// the model) are not moved. An effect is sought as the kinds of its model::EffectDefinition::also_sought_as
+/// too, and moved to one of them on the same rule (81805 of eval_loop: a payload of the hexapod that
+/// stood for a body whose mode lies just above the band, 2.15x -> 1.12x the floor as that body). Returns
+/// "<effect>@<from> -> <effect>@<to>".
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,

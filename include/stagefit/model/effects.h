@@ -99,6 +99,11 @@ struct EffectDefinition {
   /// extra body: a second local mode). Otherwise the two merge into one (two couplings of one pair
   /// are one coupling of their sum; two turns of a channel are one turn), and no second one is tried.
   bool repeatable = false;
+  /// Kinds this one may stand for when it was added in a round and the loop still ends above the floor:
+  /// the loop's relocation step (diagnose::RelocateEffects) seeks it as these too (a payload as an extra
+  /// body, whose local mode just above the band reads in the band as more mass than a payload's, with a
+  /// payload taken for it in the round). Empty when none.
+  std::vector<std::string> also_sought_as;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
