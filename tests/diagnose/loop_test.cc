@@ -673,6 +673,16 @@ TEST(DropUnneededEffects, KeepsAnEffectTheModelNeedsToBeAtTheFloor) {
   EXPECT_LT(both_error, history[1].error);
 }
 
+// The fit that puts a relocation test's effects where the loop's rounds left them: the effects and the
+// stiffnesses, as the loop refits them.
+EffectFitOptions RoundsFitOptions() {
+  EffectFitOptions eo;
+  eo.max_iterations = 100;
+  eo.probe_basins = true;
+  eo.initial_trust_region_radius = 1.0;
+  return eo;
+}
+
 // A loss factor in the wrong joint (seed 1 of eval_loop's kind of case, 5-150 Hz, here 150 frequencies:
 // a loss factor of 0.062 in rz, put in ty and fitted there with the stiffnesses) is moved to rz, where
 // the model comes to the error of the effect fitted in rz from the start; in rz it stays. (The
@@ -684,10 +694,7 @@ TEST(RelocateEffects, MovesAnEffectToWhereTheDataPutIt) {
   ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "structural-damping@rz");
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
-  EffectFitOptions eo;
-  eo.max_iterations = 100;
-  eo.probe_basins = true;
-  eo.initial_trust_region_radius = 1.0;
+  const EffectFitOptions eo = RoundsFitOptions();
   LoopOptions options;
   options.diagnose.effects = {"payload"};  // replaced by the effect sought again
   options.diagnose.progress = [](const std::string& line) { std::cout << line << std::endl; };
@@ -728,10 +735,7 @@ TEST(RelocateEffects, SeeksAPayloadAsAnExtraBodyToo) {
   ASSERT_EQ(c.effects[1].name + "@" + c.effects[1].location, "extra-body@hexapod");
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
-  EffectFitOptions eo;
-  eo.max_iterations = 100;
-  eo.probe_basins = true;
-  eo.initial_trust_region_radius = 1.0;
+  const EffectFitOptions eo = RoundsFitOptions();
   // The loop's effects as it stopped, refitted with the stiffnesses.
   const std::vector<model::Effect> rounds = {
       model::ParseEffect("payload@hexapod:mass=8.71,x=0.0971,y=0.0870,z=0.0414", nominal),
