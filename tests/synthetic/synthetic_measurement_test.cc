@@ -132,7 +132,8 @@ TEST(HiddenEffectCase, DrawsVisibleEffectsAndValidMeasurements) {
 // A later effect's visibility is its own: the change it makes to the truth with the effects drawn
 // before it. Seed 82000 of eval_loop (150 Hz, 574 points) draws a loss factor of rz, then a drive
 // spring of ty.Dy; the spring is undone by imposing ty.Dy again. Measured against the truth with no
-// effect, the spring was taken on the loss factor's change (6.7) and recorded with it.
+// effect, the first rule's spring (another draw, whose own change is 0.55) was recorded at 7.0, the
+// change of both effects (the loss factor's alone is 6.7).
 TEST(HiddenEffectCase, MeasuresALaterEffectAgainstTheEffectsBeforeIt) {
   const auto c = MakeHiddenEffectCase(model::DefaultModelSpec(), 82000, EvalLoopCaseOptions(2, 150, 574));
   ASSERT_EQ(c.effects.size(), 2u);
