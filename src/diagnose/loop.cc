@@ -310,8 +310,8 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
 }
 
 bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
-                       const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
-                       model::ModelSpec* current, std::vector<LoopStep>* history) {
+                       const model::ModelSpec& with_state, const model::Effect& effect, model::ModelSpec* current,
+                       std::vector<LoopStep>* history) {
   model::ModelSpec with = with_state;
   const double with_error = comparison.Error(with);
   if (!(with_error < history->back().error)) return false;
@@ -321,7 +321,7 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
   // their parameters fitted again together with the model's (diagnose::FitEffects). The first fit bends the model's parameters to
   // mimic what is missing (the shipped example's payload: rz.k.Dz 40x off); from (a) the refit stays
   // in that basin (1.9x the floor), from (b) it reaches the floor.
-  std::vector<model::Effect> all = *added;
+  std::vector<model::Effect> all = current->effects;
   all.push_back(effect);
   std::optional<EffectsFit> restart;
   model::ModelSpec refitted = with;
@@ -336,12 +336,10 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
     std::snprintf(line, sizeof line, "refit: error %.5f", history->back().error);
     options.progress(line);
   }
-  *added = with.effects;
   const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
   if (restart && restart_error < history->back().error) {
     history->back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};
     with = restart->spec;
-    *added = restart->effects;
     if (options.progress) options.progress("refit from the model as given: error " + std::to_string(restart_error));
   }
   *current = with;
@@ -350,12 +348,11 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
 
 std::optional<std::vector<std::string>> TryCandidateBesideAddedEffects(
     const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
-    const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
-    model::ModelSpec* current, std::vector<LoopStep>* history) {
+    const model::ModelSpec& with_state, const model::Effect& effect, model::ModelSpec* current,
+    std::vector<LoopStep>* history) {
   const model::ModelSpec before_model = *current;
-  const std::vector<model::Effect> before_added = *added;
   const double before = history->back().error;
-  if (AddEffectAndRefit(as_given, comparison, options, with_state, effect, added, current, history)) {
+  if (AddEffectAndRefit(as_given, comparison, options, with_state, effect, current, history)) {
     const std::vector<model::Effect> with_effect = current->effects;
     const std::vector<std::string> gone = DropUnneededEffects(as_given, comparison, options, effect, current, history);
     std::vector<model::Effect> removed;
@@ -375,12 +372,10 @@ std::optional<std::vector<std::string>> TryCandidateBesideAddedEffects(
                                        ? options.rounds_above_times_floor
                                        : std::numeric_limits<double>::quiet_NaN();
     if (TriedCandidateEarnsPlace(error_before, error_after, effect, removed, comparison.num_residuals(), round_threshold)) {
-      *added = current->effects;
       return gone;
     }
   }
   *current = before_model;
-  *added = before_added;
   history->push_back({"back to the model before (" + Key(effect) + " neither replaces an effect nor reaches the floor)", "", before});
   return std::nullopt;
 }
@@ -641,9 +636,6 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // (DropUnneededEffects).
   if (options.turned_channel_deg > 0) AddTurnedChannel(spec, measurement, comparison, options, &current, &summary);
 
-  // The model's effects with their fitted parameters, in order: those of the model as given, then
-  // those the loop adds.
-  std::vector<model::Effect> added = current.effects;
   // Every round's diagnosis makes its second starts from the model the user gave, not from the fitted
   // one it receives.
   DiagnoseOptions d = options.diagnose;
@@ -702,7 +694,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
           if (candidate != diagnosis.candidates.end()) {
             say("trying " + Key(candidate->effect) + " beside the effects added before");
             const auto replaced = TryCandidateBesideAddedEffects(spec, comparison, options, ApplyCandidate(diagnosis, *candidate),
-                                                                 candidate->effect, &added, &current, &summary.history);
+                                                                 candidate->effect, &current, &summary.history);
             say(summary.history.back().action + ": error " + std::to_string(summary.history.back().error));
             if (replaced) {
               dropped.insert(replaced->begin(), replaced->end());
@@ -720,12 +712,11 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
         summary.stop_reason = "the best effect was dropped before as not needed";
         break;
       }
-      if (!AddEffectAndRefit(spec, comparison, options, ApplyCandidate(diagnosis, best), best.effect, &added, &current, &summary.history)) {
+      if (!AddEffectAndRefit(spec, comparison, options, ApplyCandidate(diagnosis, best), best.effect, &current, &summary.history)) {
         summary.stop_reason = "the best effect does not lower the error of the model the loop holds";
         break;
       }
       drop_unneeded(best.effect);
-      added = current.effects;
       summary.effects_added = EffectTexts(current.effects);
     }
   };

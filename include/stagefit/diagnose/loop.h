@@ -238,13 +238,13 @@ bool KeepModelAfterHold(double error_before, double error_after, bool all_plausi
 /// `effect`, the effects already in the model and the model's parameters as the diagnosis fitted them
 /// together, diagnose::ApplyCandidate()). When its error is below `history`'s last, an "add" step is
 /// appended and it is refitted from two starts, the better kept: that state with the model's and every
-/// effect's parameters freed, and the model as given with `added` and `effect`, all their parameters
-/// fitted again together with the model's (FitEffects); a "refit" step holds the error. `current`
-/// becomes that model and `added` its effects. False, nothing changed, when the state does not lower
-/// the error.
+/// effect's parameters freed, and the model as given with `current`'s effects (as fitted there,
+/// holds included) and `effect`, all their parameters fitted again together with the model's
+/// (FitEffects); a "refit" step holds the error. `current` becomes that model. False, nothing changed,
+/// when the state does not lower the error.
 bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
-                       const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
-                       model::ModelSpec* current, std::vector<LoopStep>* history);
+                       const model::ModelSpec& with_state, const model::Effect& effect, model::ModelSpec* current,
+                       std::vector<LoopStep>* history);
 
 /// The loop's step when a round's diagnosis finds no effect that counts by itself
 /// (DiagnoseOptions::min_relative_improvement) above LoopOptions::rounds_above_times_floor in a model
@@ -261,14 +261,14 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
 /// floor (compare::Comparison::CalcNoiseFloor(spec): a channel's correction moves it), and the floor
 /// reached counting for an effect of the model only (not model::EffectDefinition::measured_side_only:
 /// seed 200055's a3z turned 17 degrees, where h1's correction beside a3z's took the error from 1.08x
-/// to 0.95x the floor, mostly by moving the floor, and is not in the data). Otherwise `current` and
-/// `added` go back to the model before, a "back to the model before" step with its error is appended
+/// to 0.95x the floor, mostly by moving the floor, and is not in the data). Otherwise `current` goes
+/// back to the model before, a "back to the model before" step with its error is appended
 /// to `history`, and the result is empty; kept, it holds the "<effect>@<location>" of the effects the
 /// candidate replaced (none when it was kept beside them).
 std::optional<std::vector<std::string>> TryCandidateBesideAddedEffects(
     const model::ModelSpec& as_given, const compare::Comparison& comparison, const LoopOptions& options,
-    const model::ModelSpec& with_state, const model::Effect& effect, std::vector<model::Effect>* added,
-    model::ModelSpec* current, std::vector<LoopStep>* history);
+    const model::ModelSpec& with_state, const model::Effect& effect, model::ModelSpec* current,
+    std::vector<LoopStep>* history);
 
 /// Whether TryCandidateBesideAddedEffects() keeps the model it reached: the candidate `added` was added
 /// and refitted, and the effects `removed` were then dropped as not needed (DropUnneededEffects), taking
