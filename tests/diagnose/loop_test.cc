@@ -528,6 +528,54 @@ TEST(DropUnneededEffects, DropsAnEffectThatStoodInBesideACorrectionNowHeld) {
   EXPECT_LT(DistanceToTruth(current, c), 0.01);
 }
 
+// An effect added beside one whose parameters are held (a channel's correction held at its turn, as
+// after HoldParametersAtBounds): the refit from the model as given starts from the model's own
+// effects, holds included, so the held parameters stay where they were put. (The loop's hold rounds
+// once restarted from a copy of its effects taken before the hold, with the turn free and the offset
+// at its bound.) Seed 51007 of eval_loop, as above: a3z's held correction fitted from the nominal
+// stiffnesses stops at 2.9x the floor, and h1's correction beside it, fitted from there, stays in
+// that basin; "the model as given" here has the truth's stiffnesses, so the restart from it is the
+// better refit, and it reaches the floor with a3z's values as held.
+TEST(AddEffectAndRefit, RestartsFromTheModelsEffectsWithTheirHolds) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectCase c;
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(51007, 774, "sensor-geometry@a3z", &c, 150));
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const auto channels = comparison.CorrectableChannels();
+  const model::Effect h1 = model::ParseEffect("sensor-geometry@h1:dx=-0.0333,dz=-0.0096,rx=0.0493,rz=-0.1148", nominal, channels);
+  const model::Effect a3z = model::ParseEffect(
+      "sensor-geometry@a3z:dx=-0.0236,dy=0,rx=0.30066481015096985,ry=1.6245651733523114e-05,rz=-2.4608138812394783e-06,"
+      "held=dy,held=rx,held=ry,held=rz",
+      nominal, channels);
+  EffectFitOptions eo;
+  eo.max_iterations = 50;
+  const EffectsFit alone = FitEffects(nominal, comparison, {a3z}, {"*.k.*"}, eo);
+  model::ModelSpec bent = alone.spec;
+  model::SetEffects(bent, {});
+  const EffectsFit both = FitEffects(bent, comparison, {alone.effects[0], h1}, {"*.k.*"}, eo);
+  const double floor = comparison.CalcNoiseFloor().floor;
+  const double alone_error = comparison.Error(alone.spec);
+  ASSERT_GT(alone_error, 2 * floor);
+  ASSERT_LT(comparison.Error(both.spec), alone_error);
+
+  model::ModelSpec current = alone.spec;
+  std::vector<LoopStep> history = {{"a3z's correction, held", "", alone_error}};
+  const model::ModelSpec as_given = WithTruthStiffnesses(nominal, c);
+  ASSERT_TRUE(AddEffectAndRefit(as_given, comparison, Options({}), both.spec, both.effects[1], &current, &history));
+  for (const LoopStep& step : history) std::cout << step.action << ": " << step.error / floor << " x the floor\n";
+  ASSERT_EQ(history.size(), 3u);
+  EXPECT_EQ(history[1].action, "add sensor-geometry@h1");
+  EXPECT_EQ(history[2].action, "refit (effects and model from the model as given)");
+  EXPECT_EQ(history[2].error, comparison.Error(current));
+  EXPECT_LT(history[2].error, kDoneTimesFloor * floor);
+  ASSERT_EQ(current.effects.size(), 2u);
+  const model::Effect& held = current.effects[0];
+  EXPECT_EQ(held.location, "a3z");
+  EXPECT_EQ(held.held, (std::vector<std::string>{"dy", "rx", "ry", "rz"}));
+  for (const char* p : {"dy", "rx", "ry", "rz"}) EXPECT_EQ(held.parameters.at(p), a3z.parameters.at(p)) << p;
+  EXPECT_EQ(current.effects[1].location, "h1");
+}
+
 // Two couplings of one joint that its stiffness centre off its origin makes are merged into the offset.
 // Seed 51012 of eval_loop (rz's stiffness centre 149 mm off and a 0.63 ms delay, 5-600 Hz, 392
 // frequencies): the loop added the delay and then rz's Dy-Rx and Dx-Ry couplings (1.06x the floor, 0.011
