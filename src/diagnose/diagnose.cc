@@ -946,122 +946,120 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     for (auto& c : unique) c.helps = false;
     return true;
   };
-  bool stopped = stop_at_floor("screening");
-  if (!stopped) {
-    // Refinement continues from where screening stopped: the effect's and the model's parameters. One
-    // effect takes at most kMaxRefinedPerEffect of the places: the 22 channels' sensor-geometry
-    // corrections, each a little better than the baseline, filled the ten and left out a joint offset in
-    // the hexapod that was the truth (seed 1002).
+  // Refinement continues from where screening stopped: the effect's and the model's parameters. One
+  // effect takes at most kMaxRefinedPerEffect of the places: the 22 channels' sensor-geometry
+  // corrections, each a little better than the baseline, filled the ten and left out a joint offset in
+  // the hexapod that was the truth (seed 1002).
+  auto refine_the_best = [&] {
     std::vector<Try> refine = Continue(unique, options.num_refined, kMaxRefinedPerEffect);
     say(Format("refining the best %.0f", static_cast<double>(refine.size())) +
         (scan_starts.empty() ? "" : Format(" and %.0f servo stiffnesses and couplings from their scans", static_cast<double>(scan_starts.size()))));
     refine.insert(refine.end(), scan_starts.begin(), scan_starts.end());
     MergeBetter(run(refine, options.refine_iterations, true, true, search, search_scale), &unique);
-    stopped = stop_at_floor("refinement");
-  }
-  if (!stopped) {
-    // A second start for the leaders: the model's parameters as given, with the effect as fitted. The
-    // baseline's stiffnesses have bent to mimic the missing effect (a delay's phase, a payload's mass)
-    // and can hold the fit with the effect in a local minimum the model as given is not in.
-    // A leader already within kSecondStartSkipTimesFloor of the search grid's noise floor is not
-    // started again: a second start could lower its error by noise only.
-    {
-      std::vector<Try> leaders = Continue(unique, options.num_second_starts);
-      const compare::NoiseFloor search_floor = search.CalcNoiseFloor();
-      size_t at_floor = 0;
-      if (search_floor.known && search_floor.floor > 0) {
-        std::vector<Try> kept;
-        for (size_t i = 0; i < leaders.size(); ++i) {
-          if (!(JudgedError(unique[i]) <= kSecondStartSkipTimesFloor * search_floor.floor)) kept.push_back(leaders[i]);
-        }
-        at_floor = leaders.size() - kept.size();
-        leaders = kept;
+  };
+  // A second start for the leaders: the model's parameters as given, with the effect as fitted. The
+  // baseline's stiffnesses have bent to mimic the missing effect (a delay's phase, a payload's mass)
+  // and can hold the fit with the effect in a local minimum the model as given is not in.
+  // A leader already within kSecondStartSkipTimesFloor of the search grid's noise floor is not
+  // started again: a second start could lower its error by noise only.
+  auto start_leaders_from_the_model_as_given = [&] {
+    std::vector<Try> leaders = Continue(unique, options.num_second_starts);
+    const compare::NoiseFloor search_floor = search.CalcNoiseFloor();
+    size_t at_floor = 0;
+    if (search_floor.known && search_floor.floor > 0) {
+      std::vector<Try> kept;
+      for (size_t i = 0; i < leaders.size(); ++i) {
+        if (!(JudgedError(unique[i]) <= kSecondStartSkipTimesFloor * search_floor.floor)) kept.push_back(leaders[i]);
       }
-      for (size_t i = 0, n = leaders.size(); i < n; ++i) {
-        leaders[i].start = as_given;
-        // A mass's height enters its rotary inertia as z^2: a fit from the wrong side of the host's centre
-        // of mass stays there. Also started mirrored (a 9.5 kg payload 148 mm above the hexapod's centre
-        // of mass, fitted at 3.7 kg 166 mm below it, 9x the floor; from +166 mm: 1.2x, seed 5006).
-        const model::Effect e = leaders[i].effect;  // a copy: the push_back below may move leaders[i]
-        if ((e.name == "payload" || e.name == "extra-body") && e.parameters.count("z") && e.parameters.at("z") != 0.0) {
-          leaders.push_back(leaders[i]);
-          leaders.back().effect.parameters["z"] = -e.parameters.at("z");
-        }
-      }
-      say(Format("second start for the best %.0f", static_cast<double>(leaders.size())) +
-          (at_floor ? Format(" (%.0f at the noise floor go without)", static_cast<double>(at_floor)) : ""));
-      // Without basin probes: the start from the model as given is itself the way out of the baseline's
-      // basin, and the probes after it took most of the step (a payload loop of the suite: 29.6 s of a
-      // round's 41.7 s with them, 2.9 s without, the same candidate found). On the 24 cases of eval_loop's
-      // seeds 35000 every outcome was the same without them, and the mean loop fell from 72 to 57 s with
-      // one effect, from 149 to 116 s with two.
-      if (!leaders.empty()) MergeBetter(run(leaders, options.refine_iterations, true, false, search, search_scale), &unique);
+      at_floor = leaders.size() - kept.size();
+      leaders = kept;
     }
-    // The leaders fitted on to their optimum: the budgets above stop a slow fit short (a turned sensor's
-    // correction with the stiffnesses: 0.109 after the rounds above, 0.038 converged, floor 0.036).
-    {
-      std::vector<Try> leaders = Continue(unique, options.num_polished);
-      for (size_t i = 0, n = leaders.size(); i < n; ++i) {
-        // An extra body's rigid limit is a payload: fitted too, with the body's mass and height. A payload
-        // of 7.2 kg, 141 mm above the hexapod (seed 1028) lost to an extra body rigid in translation
-        // (k 6.8e12 N/m, 1.16x the floor): the payload's own fits, from 1.5 kg at its host's centre of
-        // mass, stopped at 7x the floor; from the extra body's mass and height it reached the floor.
-        const auto& rigid_limit = model::FindEffectDefinition(leaders[i].effect.name).rigid_limit;
-        if (rigid_limit) {
-          const model::Effect limit = rigid_limit(leaders[i].effect);
-          leaders.push_back({limit, leaders[i].start, {}});
-          leaders.push_back({limit, as_given, {}});
-        }
-        if (leaders[i].effect.name == "extra-body") {
-          // Its rocking modes, like its translation, are found only from near their frequency: also
-          // started with kr putting them at the centre of the band where the leader's own error is
-          // largest (13008: a body at 246 Hz found with its mass and height, its rocking mode at 301 Hz
-          // not, kr 24x too soft, 2.7x the floor, with 70 % of the error in 281-354 Hz).
-          std::optional<double> hz;
-          try {
-            hz = WorstBandCentreHz(search, ApplyCandidate(summary, unique[i]));  // leaders[i] continues unique[i]
-          } catch (const std::exception&) {
-            // A leader whose model cannot be evaluated gets no such start.
-          }
-          auto add_rocking_start = [&](double rocking_hz) {
-            Try rocking = leaders[i];
-            SetExtraBodyRockingHz(&rocking.effect, rocking_hz);
-            leaders.push_back(rocking);
-          };
-          if (hz) add_rocking_start(*hz);
-          // And from the best rocking frequency of a scan across the band, the leader's other parameters
-          // as fitted: the rocking modes' basin is a few % wide. 27007 (a 4 kg body at 72 Hz, rocking at
-          // 88 Hz): fits started at 56-80 Hz ended at 56-81 Hz (1.30-1.40x the floor), from 88-120 Hz at
-          // 88 Hz (1.03-1.06x); the scan from the 56 Hz fit has its minimum at 88 Hz. 23005 (rocking at
-          // 116 Hz): only a start at 120 Hz reached it; the scan's minimum is at 116.5 Hz, 3 % wide.
-          if (const auto scanned = ScanRockingHz(search, summary, unique[i])) add_rocking_start(*scanned);
-        }
+    for (size_t i = 0, n = leaders.size(); i < n; ++i) {
+      leaders[i].start = as_given;
+      // A mass's height enters its rotary inertia as z^2: a fit from the wrong side of the host's centre
+      // of mass stays there. Also started mirrored (a 9.5 kg payload 148 mm above the hexapod's centre
+      // of mass, fitted at 3.7 kg 166 mm below it, 9x the floor; from +166 mm: 1.2x, seed 5006).
+      const model::Effect e = leaders[i].effect;  // a copy: the push_back below may move leaders[i]
+      if ((e.name == "payload" || e.name == "extra-body") && e.parameters.count("z") && e.parameters.at("z") != 0.0) {
         leaders.push_back(leaders[i]);
-        leaders.back().start = as_given;
+        leaders.back().effect.parameters["z"] = -e.parameters.at("z");
       }
-      say(Format("fitting the best %.0f to convergence", static_cast<double>(std::min<size_t>(unique.size(), options.num_polished))));
-      MergeBetter(run(leaders, options.polish_iterations, true, false, search, search_scale, kPolishTrustRegionRadius,
-                      options.stall_iterations),
-                  &unique);
     }
-    // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
-    // and the leaders are finished there (their optimum moves a little with the grid).
-    if (thinned_comparison) {
-      unique = score_on(unique, comparison, full_scale());
-      SortByBic(&unique);
-      const std::vector<Try> leaders = Continue(unique, options.num_finished);
-      say(Format("finishing the best %.0f on all %.0f frequencies", static_cast<double>(leaders.size()),
-                 comparison.num_frequencies()));
-      MergeBetter(run(leaders, options.finish_iterations, true, false, comparison, full_scale()), &unique);
+    say(Format("second start for the best %.0f", static_cast<double>(leaders.size())) +
+        (at_floor ? Format(" (%.0f at the noise floor go without)", static_cast<double>(at_floor)) : ""));
+    // Without basin probes: the start from the model as given is itself the way out of the baseline's
+    // basin, and the probes after it took most of the step (a payload loop of the suite: 29.6 s of a
+    // round's 41.7 s with them, 2.9 s without, the same candidate found). On the 24 cases of eval_loop's
+    // seeds 35000 every outcome was the same without them, and the mean loop fell from 72 to 57 s with
+    // one effect, from 149 to 116 s with two.
+    if (!leaders.empty()) MergeBetter(run(leaders, options.refine_iterations, true, false, search, search_scale), &unique);
+  };
+  // The leaders fitted on to their optimum: the budgets above stop a slow fit short (a turned sensor's
+  // correction with the stiffnesses: 0.109 after the rounds above, 0.038 converged, floor 0.036).
+  auto fit_leaders_to_convergence = [&] {
+    std::vector<Try> leaders = Continue(unique, options.num_polished);
+    for (size_t i = 0, n = leaders.size(); i < n; ++i) {
+      // An extra body's rigid limit is a payload: fitted too, with the body's mass and height. A payload
+      // of 7.2 kg, 141 mm above the hexapod (seed 1028) lost to an extra body rigid in translation
+      // (k 6.8e12 N/m, 1.16x the floor): the payload's own fits, from 1.5 kg at its host's centre of
+      // mass, stopped at 7x the floor; from the extra body's mass and height it reached the floor.
+      const auto& rigid_limit = model::FindEffectDefinition(leaders[i].effect.name).rigid_limit;
+      if (rigid_limit) {
+        const model::Effect limit = rigid_limit(leaders[i].effect);
+        leaders.push_back({limit, leaders[i].start, {}});
+        leaders.push_back({limit, as_given, {}});
+      }
+      if (leaders[i].effect.name == "extra-body") {
+        // Its rocking modes, like its translation, are found only from near their frequency: also
+        // started with kr putting them at the centre of the band where the leader's own error is
+        // largest (13008: a body at 246 Hz found with its mass and height, its rocking mode at 301 Hz
+        // not, kr 24x too soft, 2.7x the floor, with 70 % of the error in 281-354 Hz).
+        std::optional<double> hz;
+        try {
+          hz = WorstBandCentreHz(search, ApplyCandidate(summary, unique[i]));  // leaders[i] continues unique[i]
+        } catch (const std::exception&) {
+          // A leader whose model cannot be evaluated gets no such start.
+        }
+        auto add_rocking_start = [&](double rocking_hz) {
+          Try rocking = leaders[i];
+          SetExtraBodyRockingHz(&rocking.effect, rocking_hz);
+          leaders.push_back(rocking);
+        };
+        if (hz) add_rocking_start(*hz);
+        // And from the best rocking frequency of a scan across the band, the leader's other parameters
+        // as fitted: the rocking modes' basin is a few % wide. 27007 (a 4 kg body at 72 Hz, rocking at
+        // 88 Hz): fits started at 56-80 Hz ended at 56-81 Hz (1.30-1.40x the floor), from 88-120 Hz at
+        // 88 Hz (1.03-1.06x); the scan from the 56 Hz fit has its minimum at 88 Hz. 23005 (rocking at
+        // 116 Hz): only a start at 120 Hz reached it; the scan's minimum is at 116.5 Hz, 3 % wide.
+        if (const auto scanned = ScanRockingHz(search, summary, unique[i])) add_rocking_start(*scanned);
+      }
+      leaders.push_back(leaders[i]);
+      leaders.back().start = as_given;
     }
-    // 3. Is the leader's effect needed? Its fit moved the model's own parameters too, and may have
-    // carried them out of a local minimum the baseline fit stopped in. Refit the model without the
-    // effect from the leader's parameters, and (first round) from the model as given with several starts
-    // (DiagnoseOptions::refit_starts): when that lowers the baseline's error, the baseline was not at its
-    // optimum; the candidates are scored again against the better baseline (an effect-free measurement
-    // whose baseline fit stopped short otherwise credits the first effect that frees it).
-    // A second round only when the better baseline puts another leader (or the same with other model
-    // parameters) first: from the same start the refit reaches the same optimum again.
+    say(Format("fitting the best %.0f to convergence", static_cast<double>(std::min<size_t>(unique.size(), options.num_polished))));
+    MergeBetter(run(leaders, options.polish_iterations, true, false, search, search_scale, kPolishTrustRegionRadius,
+                    options.stall_iterations),
+                &unique);
+  };
+  // After a search on a thinned grid: every candidate is scored on all frequencies as it was fitted,
+  // and the leaders are finished there (their optimum moves a little with the grid).
+  auto finish_leaders_on_all_frequencies = [&] {
+    unique = score_on(unique, comparison, full_scale());
+    SortByBic(&unique);
+    const std::vector<Try> leaders = Continue(unique, options.num_finished);
+    say(Format("finishing the best %.0f on all %.0f frequencies", static_cast<double>(leaders.size()),
+               comparison.num_frequencies()));
+    MergeBetter(run(leaders, options.finish_iterations, true, false, comparison, full_scale()), &unique);
+  };
+  // 3. Is the leader's effect needed? Its fit moved the model's own parameters too, and may have
+  // carried them out of a local minimum the baseline fit stopped in. Refit the model without the
+  // effect from the leader's parameters, and (first round) from the model as given with several starts
+  // (DiagnoseOptions::refit_starts): when that lowers the baseline's error, the baseline was not at its
+  // optimum; the candidates are scored again against the better baseline (an effect-free measurement
+  // whose baseline fit stopped short otherwise credits the first effect that frees it).
+  // A second round only when the better baseline puts another leader (or the same with other model
+  // parameters) first: from the same start the refit reaches the same optimum again.
+  auto refit_the_baseline_from_the_leader = [&] {
     std::map<std::string, double> refitted_from;
     for (int round = 0; round < 2 && !model_params.empty() && !unique.empty() && unique[0].helps; ++round) {
       if (round > 0 && unique[0].model_parameters == refitted_from) break;
@@ -1085,6 +1083,17 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       for (auto& c : unique) rescore(&c, full_scale());
       SortByBic(&unique);
     }
+  };
+  bool stopped = stop_at_floor("screening");
+  if (!stopped) {
+    refine_the_best();
+    stopped = stop_at_floor("refinement");
+  }
+  if (!stopped) {
+    start_leaders_from_the_model_as_given();
+    fit_leaders_to_convergence();
+    if (thinned_comparison) finish_leaders_on_all_frequencies();
+    refit_the_baseline_from_the_leader();
   }
   // Physically absurd fits are not claimed (they are kept in the list, marked, after those that help).
   for (auto& c : unique) {

@@ -487,6 +487,15 @@ TEST(HoldParametersAtBounds, HoldsAnOffsetAtNoneAndAChannelsTurnAtItsEstimate) {
   EXPECT_EQ(history.size(), 2u);
 }
 
+// The two corrections the loop had on seed 51007 of eval_loop (a3z turned 17 degrees): h1's, and
+// a3z's with its turn held at the estimate and its offset dy at none.
+std::pair<model::Effect, model::Effect> Corrections51007(const model::ModelSpec& nominal, const std::vector<std::string>& channels) {
+  return {model::ParseEffect("sensor-geometry@h1:dx=-0.0333,dz=-0.0096,rx=0.0493,rz=-0.1148", nominal, channels),
+          model::ParseEffect("sensor-geometry@a3z:dx=-0.0236,dy=0,rx=0.30066481015096985,ry=1.6245651733523114e-05,"
+                             "rz=-2.4608138812394783e-06,held=dy,held=rx,held=ry,held=rz",
+                             nominal, channels)};
+}
+
 // After the hold, the effects added before the held one earn their place again (RunLoop calls
 // DropUnneededEffects with the held effect newest). Seed 51007 of eval_loop (a3z turned 17 degrees,
 // 5-150 Hz, 774 frequencies): the loop added h1's correction first (1.75x -> 1.27x), then a3z's beside
@@ -502,12 +511,7 @@ TEST(DropUnneededEffects, DropsAnEffectThatStoodInBesideACorrectionNowHeld) {
   synthetic::HiddenEffectCase c;
   ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(51007, 774, "sensor-geometry@a3z", &c, 150));
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  const auto channels = comparison.CorrectableChannels();
-  const model::Effect h1 = model::ParseEffect("sensor-geometry@h1:dx=-0.0333,dz=-0.0096,rx=0.0493,rz=-0.1148", nominal, channels);
-  const model::Effect a3z = model::ParseEffect(
-      "sensor-geometry@a3z:dx=-0.0236,dy=0,rx=0.30066481015096985,ry=1.6245651733523114e-05,rz=-2.4608138812394783e-06,"
-      "held=dy,held=rx,held=ry,held=rz",
-      nominal, channels);
+  const auto [h1, a3z] = Corrections51007(nominal, comparison.CorrectableChannels());
   const model::ModelSpec start = WithTruthStiffnesses(nominal, c);
   EffectFitOptions eo;
   eo.max_iterations = 50;
@@ -541,12 +545,7 @@ TEST(AddEffectAndRefit, RestartsFromTheModelsEffectsWithTheirHolds) {
   synthetic::HiddenEffectCase c;
   ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(51007, 774, "sensor-geometry@a3z", &c, 150));
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  const auto channels = comparison.CorrectableChannels();
-  const model::Effect h1 = model::ParseEffect("sensor-geometry@h1:dx=-0.0333,dz=-0.0096,rx=0.0493,rz=-0.1148", nominal, channels);
-  const model::Effect a3z = model::ParseEffect(
-      "sensor-geometry@a3z:dx=-0.0236,dy=0,rx=0.30066481015096985,ry=1.6245651733523114e-05,rz=-2.4608138812394783e-06,"
-      "held=dy,held=rx,held=ry,held=rz",
-      nominal, channels);
+  const auto [h1, a3z] = Corrections51007(nominal, comparison.CorrectableChannels());
   EffectFitOptions eo;
   eo.max_iterations = 50;
   const EffectsFit alone = FitEffects(nominal, comparison, {a3z}, {"*.k.*"}, eo);
