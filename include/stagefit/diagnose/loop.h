@@ -176,7 +176,8 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
 /// 288 Hz in a 600 Hz band, 1.005x for a rocking at 31 Hz that the data did not show.
 constexpr double kLocalModeSeenRise = 0.10;
 
-/// The loop's last check at the noise floor: every effect the loop added that has a rigid limit
+/// The loop's last check at the noise floor (followed by MergeMimickingEffects() again when a limit is
+/// taken): every effect the loop added that has a rigid limit
 /// (model::EffectDefinition::rigid_limit: an extra body -> a payload) is replaced by it and the model
 /// refitted from `current`'s state and from the model as given (the better kept); where that error is
 /// within kRigidLimitTolerance of `history`'s last, the limit is taken: `current` becomes that model and
