@@ -1029,6 +1029,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         } catch (const std::exception&) {
           continue;  // a leader whose model cannot be built gets no such start
         }
+        // A coupling the effect does not make (an offset makes none between two rotations) starts nothing.
+        if (std::all_of(made.parameters.begin(), made.parameters.end(), [](const auto& p) { return p.second == 0.0; })) continue;
         leaders.push_back({made, leaders[i].start, {}});
         leaders.push_back({made, as_given, {}});
       }
