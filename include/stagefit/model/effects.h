@@ -88,10 +88,11 @@ struct EffectDefinition {
   /// Effects of these kinds, two or more at the joint where this one would sit, can be this one effect
   /// (a joint's stiffness centre off its origin couples the joint's translations with its rotations:
   /// Dx-Ry and Dy-Rx, as two coupled-stiffness effects would). The loop tries this one in their place
-  /// (diagnose::MergeMimickingEffects). Empty when none.
+  /// (diagnose::MergeMimickingEffects), and a diagnosis whose leader is one of them also fits this one
+  /// there, from what the leader makes of it. Empty when none.
   std::vector<std::string> mimicked_together_by;
   /// This effect's parameters at `joint` that make what `mimics` (effects of mimicked_together_by
-  /// there) make, on `before` (the model without them): where the merge starts. Set with
+  /// there) make, on `before` (the model without them): where the merge and that fit start. Set with
   /// mimicked_together_by.
   std::function<std::map<std::string, double>(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& mimics)>
       from_mimics;
