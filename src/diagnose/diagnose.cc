@@ -1024,10 +1024,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         const std::vector<std::string> at = model::EffectLocations(summary.baseline, one.name);
         if (std::find(at.begin(), at.end(), joint) == at.end()) continue;
         model::Effect made;
-        try {
-          made = {one.name, joint, one.from_mimics(ApplyCandidate(summary, unique[i]), joint, {leader}), {}};
+        try {  // on the model without the leader, at the leader's parameters
+          made = {one.name, joint, one.from_mimics(baseline_with(unique[i].model_parameters), joint, {leader}), {}};
         } catch (const std::exception&) {
-          continue;  // a leader whose model cannot be built gets no such start
+          continue;  // a joint the effect cannot take gets no such start
         }
         // A coupling the effect does not make (an offset makes none between two rotations) starts nothing.
         if (std::all_of(made.parameters.begin(), made.parameters.end(), [](const auto& p) { return p.second == 0.0; })) continue;
