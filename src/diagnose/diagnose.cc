@@ -1016,10 +1016,9 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       // screening, its best fit stayed at dz = 2 mm (0.0406), and rz's Dy-Rx coupling took its place at
       // 1.05x the floor (0.0351).
       const model::Effect leader = leaders[i].effect;  // a copy: the push_back below may move leaders[i]
-      const std::string joint = leader.location.substr(0, leader.location.find('.'));
+      const std::string joint = model::LocationJoint(leader.location);
       for (const model::EffectDefinition& one : model::EffectCatalogue()) {
-        const auto& kinds = one.mimicked_together_by;
-        if (!one.from_mimics || std::find(kinds.begin(), kinds.end(), leader.name) == kinds.end()) continue;
+        if (!model::StandsFor(one, leader.name)) continue;
         if (!options.effects.empty() && std::find(options.effects.begin(), options.effects.end(), one.name) == options.effects.end()) continue;
         const std::vector<std::string> at = model::EffectLocations(summary.baseline, one.name);
         if (std::find(at.begin(), at.end(), joint) == at.end()) continue;

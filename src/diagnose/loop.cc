@@ -508,14 +508,13 @@ std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given,
   std::vector<std::string> merged;
   const size_t first = as_given.effects.size();
   for (const model::EffectDefinition& one : model::EffectCatalogue()) {
-    if (one.mimicked_together_by.empty() || !one.from_mimics) continue;
-    // The joints (a location's part before its first '.') holding two or more added effects of those kinds.
+    // The joints holding two or more added effects it can stand for.
     std::map<std::string, std::vector<model::Effect>> at_joint;
     for (size_t k = first; k < current->effects.size(); ++k) {
       const model::Effect& e = current->effects[k];
-      const auto& kinds = one.mimicked_together_by;
-      if (std::find(kinds.begin(), kinds.end(), e.name) != kinds.end()) at_joint[e.location.substr(0, e.location.find('.'))].push_back(e);
+      if (model::StandsFor(one, e.name)) at_joint[model::LocationJoint(e.location)].push_back(e);
     }
+    if (at_joint.empty()) continue;
     const std::vector<std::string> locations = model::EffectLocations(*current, one.name);
     for (const auto& [joint, mimics] : at_joint) {
       if (mimics.size() < 2 || std::find(locations.begin(), locations.end(), joint) == locations.end()) continue;

@@ -541,6 +541,13 @@ const EffectDefinition& FindEffectDefinition(const std::string& name) {
   throw InputError("effect '" + name + "' is not in the catalogue (" + names + ")");
 }
 
+bool StandsFor(const EffectDefinition& one, const std::string& kind) {
+  const auto& kinds = one.mimicked_together_by;
+  return one.from_mimics && std::find(kinds.begin(), kinds.end(), kind) != kinds.end();
+}
+
+std::string LocationJoint(const std::string& location) { return location.substr(0, location.find('.')); }
+
 std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::string& name,
                                          const std::vector<std::string>& channels) {
   const EffectDefinition& def = FindEffectDefinition(name);

@@ -181,6 +181,21 @@ TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
   EXPECT_EQ(rocking, 3);
 }
 
+// The catalogue's route from couplings to the joint offset that makes them (the loop's merge and a
+// diagnosis' start from a leading coupling take it), and the joint a location names.
+TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {
+  const EffectDefinition& offset = FindEffectDefinition("joint-offset");
+  EXPECT_TRUE(StandsFor(offset, "coupled-stiffness"));
+  EXPECT_FALSE(StandsFor(offset, "payload"));
+  EXPECT_FALSE(StandsFor(offset, "joint-offset"));
+  for (const EffectDefinition& one : EffectCatalogue()) {
+    if (!one.from_mimics) EXPECT_FALSE(StandsFor(one, "coupled-stiffness")) << one.name;
+  }
+  EXPECT_EQ(LocationJoint("rz.Dy-Rx"), "rz");
+  EXPECT_EQ(LocationJoint("hexapod"), "hexapod");
+  EXPECT_EQ(LocationJoint(""), "");
+}
+
 // A joint's stiffness centre moved by r: its springs act on u + theta x r, so about the origin the
 // joint is stiffer by the couplings K(Dx,Ry) = kx dz, K(Dy,Rx) = -ky dz, K(Dx,Rz) = -kx dy,
 // K(Dz,Rx) = kz dy, K(Dy,Rz) = ky dx, K(Dz,Ry) = -kz dx, by k r^2 on the rotations and between them

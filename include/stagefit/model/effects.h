@@ -112,6 +112,13 @@ const std::vector<EffectDefinition>& EffectCatalogue();
 /// Throws InputError listing the catalogue when `name` is not in it.
 const EffectDefinition& FindEffectDefinition(const std::string& name);
 
+/// Whether `one` can be fitted in place of effects of kind `kind` at its joint: its
+/// mimicked_together_by holds `kind` and its from_mimics is set (a joint offset for couplings).
+bool StandsFor(const EffectDefinition& one, const std::string& kind);
+
+/// The joint a location names: its part before the first '.' ("rz" of "rz.Dy-Rx" and of "rz").
+std::string LocationJoint(const std::string& location);
+
 /// Every location of `spec` where effect `name` applies. Channel locations (sensor-geometry) come from
 /// `channels` (the measurement's channel names) plus the model's sensors and excitations.
 std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::string& name,
