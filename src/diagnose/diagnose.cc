@@ -1022,6 +1022,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         if (!options.effects.empty() && std::find(options.effects.begin(), options.effects.end(), one.name) == options.effects.end()) continue;
         const std::vector<std::string> at = model::EffectLocations(summary.baseline, one.name);
         if (std::find(at.begin(), at.end(), joint) == at.end()) continue;
+        // Nor where the model holds one already: its parameters are refitted with every candidate, and a
+        // second one would be the same edit again (82236 of eval_loop: a coupling of the hexapod beside
+        // the hexapod's offset).
+        if (!one.repeatable && model::HoldsEffect(summary.baseline, one.name, joint)) continue;
         model::Effect made;
         try {  // on the model without the leader, at the leader's parameters
           made = {one.name, joint, one.from_mimics(baseline_with(unique[i].model_parameters), joint, {leader}), {}};
@@ -1060,7 +1064,8 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       leaders.push_back(leaders[i]);
       leaders.back().start = as_given;
     }
-    say(Format("fitting the best %.0f to convergence", static_cast<double>(std::min<size_t>(unique.size(), options.num_polished))));
+    say(Format("fitting the best %.0f to convergence (%.0f fits)", static_cast<double>(std::min<size_t>(unique.size(), options.num_polished)),
+               static_cast<double>(leaders.size())));
     MergeBetter(run(leaders, options.polish_iterations, true, false, search, search_scale, kPolishTrustRegionRadius,
                     options.stall_iterations),
                 &unique);
