@@ -103,13 +103,13 @@ model::Effect ExtraBodyOnTheHexapod(const synthetic::HiddenEffectCase& c, const 
 
 // `nominal` with the joint stiffnesses of the case's truth (where the loop's rounds had brought them,
 // for tests of a step after the rounds) on its free DoF; an imposed one stays imposed (a truth with a
-// servo stiffness has one there).
+// servo stiffness has one there). The truth's joints are matched by name: a hidden body adds its own.
 model::ModelSpec WithTruthStiffnesses(const model::ModelSpec& nominal, const synthetic::HiddenEffectCase& c) {
   model::ModelSpec start = nominal;
-  EXPECT_EQ(c.truth.joints.size(), start.joints.size());
-  for (size_t j = 0; j < start.joints.size() && j < c.truth.joints.size(); ++j) {
+  for (model::JointSpec& joint : start.joints) {
+    const model::JointSpec& truth = c.truth.joints[model::FindJoint(c.truth, joint.name)];
     for (int d = 0; d < 6; ++d) {
-      if (!start.joints[j].imposed[d]) start.joints[j].stiffness[d] = c.truth.joints[j].stiffness[d];
+      if (!joint.imposed[d]) joint.stiffness[d] = truth.stiffness[d];
     }
   }
   return start;
@@ -385,6 +385,44 @@ TEST(TakeRigidLimits, TriesTheLimitOfABodyWhoseRockingInTheBandTheDataDoNotSee) 
   ASSERT_EQ(taken, std::vector<std::string>{"extra-body@hexapod -> payload@hexapod"}) << fitted.effects[0].ToString();
   EXPECT_EQ(current.effects[0].name, "payload");
   EXPECT_NEAR(current.effects[0].parameters.at("mass"), body.mass_kg, 0.05 * body.mass_kg);
+  EXPECT_LE(history.back().error, (1 + kRigidLimitTolerance) * error);
+}
+
+// The same where the model's parameters lean on the unseen rocking: 82270 of eval_loop (a 6 kg payload
+// 87 mm above the hexapod and a 0.37 ms delay, 600 Hz band, 336 points) ended its loop with the
+// payload as a body rigid in translation rocking at 65 Hz, whose limit as it stands raised the error
+// by 14.5 %. Fitted so from the truth's stiffnesses (the rocking held), the limit as it stands is still
+// more than kLocalModeSeenRise above the error; a few iterations of refit bring it back, and the payload
+// is taken.
+TEST(TakeRigidLimits, TakesTheLimitWhereTheModelLeansOnAnUnseenRocking) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 82270, synthetic::EvalLoopCaseOptions(2, 600, 336));
+  ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"delay@acquisition", "payload@hexapod"}));
+  const auto& body = c.truth.bodies[model::FindBody(c.truth, "hidden_payload")];
+  model::Effect start = ExtraBodyOnTheHexapod(c, "hidden_payload", 1e14, 2489);  // as the loop ended
+  model::HoldEffectParameter(&start, "k");
+  model::HoldEffectParameter(&start, "kr");
+  const model::Effect delay{"delay", "acquisition", {{"tau", 0.37e-3}}, {}};
+  EffectFitOptions eo;
+  eo.max_iterations = 50;
+  eo.initial_trust_region_radius = 1.0;
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const EffectsFit fitted = FitEffects(WithTruthStiffnesses(nominal, c), comparison, {start, delay}, {"*.k.*"}, eo);
+  const auto modes = model::FindEffectDefinition("extra-body").local_modes_hz(fitted.effects[0]);
+  const Eigen::VectorXd& f = comparison.frequency_hz();
+  ASSERT_TRUE(modes[1] > f(0) && modes[1] < f(f.size() - 1)) << fitted.effects[0].ToString();  // the rocking
+  model::ModelSpec current = fitted.spec;
+  const double error = comparison.Error(current);
+  std::vector<model::Effect> with_limit = current.effects;
+  with_limit[0] = model::FindEffectDefinition("extra-body").rigid_limit(with_limit[0]);
+  model::ModelSpec as_it_stands = current;
+  model::SetEffects(as_it_stands, with_limit);
+  ASSERT_GT(comparison.Error(as_it_stands), (1 + kLocalModeSeenRise) * error);
+  std::vector<LoopStep> history = {{"fit", "", error}};
+  const auto taken = TakeRigidLimits(nominal, comparison, LoopOptions{}, &current, &history);
+  ASSERT_EQ(taken, std::vector<std::string>{"extra-body@hexapod -> payload@hexapod"}) << fitted.effects[0].ToString();
+  EXPECT_EQ(current.effects[0].name, "payload");
+  EXPECT_NEAR(current.effects[0].parameters.at("mass"), body.mass_kg, 0.02 * body.mass_kg);
   EXPECT_LE(history.back().error, (1 + kRigidLimitTolerance) * error);
 }
 

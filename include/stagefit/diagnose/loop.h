@@ -175,6 +175,9 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
 /// error by more than this share has its mode in the data (TakeRigidLimits). Seen: 18.9x for a body at
 /// 288 Hz in a 600 Hz band, 1.005x for a rocking at 31 Hz that the data did not show.
 constexpr double kLocalModeSeenRise = 0.10;
+/// ... and still does after this many iterations of the model's and effects' fit from the loop's state
+/// with the limit in the effect's place (the model's parameters may lean on a mode the data do not see).
+constexpr int kLocalModeSeenIterations = 3;
 
 /// The loop's last check at the noise floor (followed by MergeMimickingEffects() again when a limit is
 /// taken): every effect the loop added that has a rigid limit
@@ -186,8 +189,8 @@ constexpr double kLocalModeSeenRise = 0.10;
 /// in a first round at 3.7x the floor was an extra body whose joint later sat rigid (local mode near
 /// 1 kHz in a 150 Hz band, kr at its 1e14 bound) in the final model at the floor (seed 19018). An effect
 /// with a local mode inside the comparison's band (model::EffectDefinition::local_modes_hz) is refitted
-/// as its limit only when the limit put in its place as it stands raises the error by at most
-/// kLocalModeSeenRise: otherwise the data see the mode. Returns "<effect>@<location> -> <limit>@<location>"
+/// as its limit only when the limit put in its place as it stands, or after kLocalModeSeenIterations of
+/// refit, raises the error by at most kLocalModeSeenRise: otherwise the data see the mode. Returns "<effect>@<location> -> <limit>@<location>"
 /// for each limit taken.
 std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                          const LoopOptions& options, model::ModelSpec* current, std::vector<LoopStep>* history);
