@@ -190,8 +190,8 @@ constexpr int kLocalModeSeenIterations = 3;
 /// 1 kHz in a 150 Hz band, kr at its 1e14 bound) in the final model at the floor (seed 19018). An effect
 /// with a local mode inside the comparison's band (model::EffectDefinition::local_modes_hz) is refitted
 /// as its limit only when the limit put in its place as it stands, or after kLocalModeSeenIterations of
-/// refit, raises the error by at most kLocalModeSeenRise: otherwise the data see the mode. Returns "<effect>@<location> -> <limit>@<location>"
-/// for each limit taken.
+/// refit, raises the error by at most kLocalModeSeenRise: otherwise the data see the mode. Returns
+/// "<effect>@<location> -> <limit>@<location>" for each limit taken.
 std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                          const LoopOptions& options, model::ModelSpec* current, std::vector<LoopStep>* history);
 
