@@ -1025,7 +1025,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         // Nor where the model holds one already: its parameters are refitted with every candidate, and a
         // second one would be the same edit again (82236 of eval_loop: a coupling of the hexapod beside
         // the hexapod's offset).
-        if (!one.repeatable && model::HoldsEffect(summary.baseline, one.name, joint)) continue;
+        if (!model::AddsAnother(summary.baseline, one, joint)) continue;
         model::Effect made;
         try {  // on the model without the leader, at the leader's parameters
           made = {one.name, joint, one.from_mimics(baseline_with(unique[i].model_parameters), joint, {leader}), {}};

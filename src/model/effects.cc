@@ -743,11 +743,15 @@ bool HoldsEffect(const ModelSpec& spec, const std::string& name, const std::stri
                      [&](const Effect& e) { return e.name == name && e.location == location; });
 }
 
+bool AddsAnother(const ModelSpec& spec, const EffectDefinition& definition, const std::string& location) {
+  return definition.repeatable || !HoldsEffect(spec, definition.name, location);
+}
+
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels) {
   std::vector<Effect> all;
   for (const auto& def : EffectCatalogue()) {
     for (const auto& location : EffectLocations(spec, def.name, channels)) {
-      if (!def.repeatable && HoldsEffect(spec, def.name, location)) continue;
+      if (!AddsAnother(spec, def, location)) continue;
       all.push_back({def.name, location, DefaultEffectParameters(spec, def.name, location)});
     }
   }

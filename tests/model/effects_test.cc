@@ -191,6 +191,12 @@ TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {
   for (const EffectDefinition& one : EffectCatalogue()) {
     if (!one.from_mimics) EXPECT_FALSE(StandsFor(one, "coupled-stiffness")) << one.name;
   }
+  // A second offset where the model holds one adds nothing; a second extra body adds its own mode.
+  ModelSpec moved = DefaultModelSpec();
+  ApplyEffect(moved, Effect{"joint-offset", "rz", {{"dx", 0.0}, {"dy", 0.0}, {"dz", 0.05}}, {}});
+  EXPECT_FALSE(AddsAnother(moved, offset, "rz"));
+  EXPECT_TRUE(AddsAnother(moved, offset, "hexapod"));
+  EXPECT_TRUE(AddsAnother(moved, FindEffectDefinition("extra-body"), "hexapod"));
   EXPECT_EQ(LocationJoint("rz.Dy-Rx"), "rz");
   EXPECT_EQ(LocationJoint("hexapod"), "hexapod");
   EXPECT_EQ(LocationJoint(""), "");

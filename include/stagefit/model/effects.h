@@ -171,9 +171,13 @@ ModelSpec ExpandedBefore(const ModelSpec& spec, size_t count);
 /// Whether `spec` holds the effect `name` at `location` already.
 bool HoldsEffect(const ModelSpec& spec, const std::string& name, const std::string& location);
 
+/// Whether one more effect of `definition` at `location` adds anything to `spec`: always for a
+/// repeatable one (EffectDefinition::repeatable), otherwise only where spec does not hold one (HoldsEffect).
+bool AddsAnother(const ModelSpec& spec, const EffectDefinition& definition, const std::string& location);
+
 /// Every catalogued effect at every location with default parameters (what diagnose tries), except at
-/// a location where `spec` already holds the same effect (HoldsEffect) and it is not
-/// EffectDefinition::repeatable.
+/// a location where another adds nothing (AddsAnother: `spec` holds the same effect and it is not
+/// EffectDefinition::repeatable).
 std::vector<Effect> EnumerateEffects(const ModelSpec& spec, const std::vector<std::string>& channels = {});
 
 }  // namespace stagefit::model
