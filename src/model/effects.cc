@@ -355,6 +355,12 @@ std::vector<EffectDefinition> MakeCatalogue() {
              e.location + Format(" (%.0f mm off-axis)", 1e3 * std::hypot(Get(e, "x"), Get(e, "y")));
     };
     d.also_sought_as = {"extra-body"};
+    d.starts_in_place = [](const Effect& e, double band_high_hz) {
+      const double m = Get(e, "mass"), r = kExtraBodyRadiusOfGyration, w = 2 * M_PI * 2 * band_high_hz;
+      return std::vector<Effect>{
+          Effect{"extra-body", e.location, Params{{"mass", m}, {"k", m * w * w}, {"kr", m * r * r * w * w}, {"z", Get(e, "z")}}},
+          Effect{"payload", e.location, Params{{"mass", m}, {"x", 0.0}, {"y", 0.0}, {"z", 0.0}}}};
+    };
     d.adds_mass = true;
     c.push_back(d);
   }

@@ -181,6 +181,23 @@ TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
   EXPECT_EQ(rocking, 3);
 }
 
+// A payload's other starts in its place (the loop's relocation step refits each): the extra body it may
+// stand for, of its mass at its height with both local modes at twice the band's top, and the payload of
+// its mass at the host's centre of mass.
+TEST(Effects, APayloadsStartsInItsPlaceAreABodyAboveTheBandAndItsMassAtTheCentre) {
+  const ModelSpec base = DefaultModelSpec();
+  const Effect payload = ParseEffect("payload@hexapod:mass=5.9,x=-0.033,y=0.04,z=-0.013", base);
+  const auto& definition = FindEffectDefinition("payload");
+  ASSERT_TRUE(definition.starts_in_place);
+  const std::vector<Effect> starts = definition.starts_in_place(payload, 150.0);
+  ASSERT_EQ(starts.size(), 2u);
+  EXPECT_EQ(starts[0].name + "@" + starts[0].location, "extra-body@hexapod");
+  EXPECT_EQ(starts[0].parameters.at("mass"), 5.9);
+  EXPECT_EQ(starts[0].parameters.at("z"), -0.013);
+  for (double hz : FindEffectDefinition("extra-body").local_modes_hz(starts[0])) EXPECT_NEAR(hz, 300.0, 1e-9);
+  EXPECT_EQ(starts[1].ToString(), "payload@hexapod:mass=5.9000000000000004,x=0,y=0,z=0");
+}
+
 // The catalogue's route from couplings to the joint offset that makes them (the loop's merge and a
 // diagnosis' start from a leading coupling take it), and the joint a location names.
 TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {

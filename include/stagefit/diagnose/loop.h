@@ -151,6 +151,11 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
                                              const LoopOptions& options, const model::Effect& newest,
                                              model::ModelSpec* current, std::vector<LoopStep>* history);
 
+/// The options of the loop's diagnoses: LoopOptions::diagnose with the loop's progress, its stop at
+/// LoopOptions::rounds_above_times_floor (DiagnoseOptions::stop_at_times_floor), and second starts from
+/// `as_given`'s parameters (DiagnoseOptions::as_given, unless set).
+DiagnoseOptions LoopDiagnoseOptions(const LoopOptions& options, const model::ModelSpec& as_given);
+
 /// The loop's step after its rounds when it ends above LoopOptions::rounds_above_times_floor with
 /// effects it added: each of them in turn is taken out and sought again at every location of its kind,
 /// by a diagnosis of that effect alone (`diagnose` with DiagnoseOptions::effects set to it) on the
@@ -164,8 +169,14 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
 /// with one location (a delay) and channel corrections (located by the channels' own directions, not by
 /// the model) are not moved. An effect is sought as the kinds of its model::EffectDefinition::also_sought_as
 /// too, and moved to one of them on the same rule (81805 of eval_loop: a payload of the hexapod that
-/// stood for a body whose mode lies just above the band, 2.15x -> 1.12x the floor as that body). Returns
-/// "<effect>@<from> -> <effect>@<to>".
+/// stood for a body whose mode lies just above the band, 2.15x -> 1.12x the floor as that body). Beside
+/// the diagnosis, the effect is refitted from each of its starts in its own place
+/// (model::EffectDefinition::starts_in_place), from the loop's state and from the model as given; the
+/// best of these and the diagnosis' move is taken on the same rule (82296: a payload standing for a body
+/// above the band, 1.13x -> 1.01x as that body; 82315: a payload fitted off-axis and below its host's
+/// centre, 4.9x -> 1.05x started again at the centre; history: "refit <effect>@<location> from another
+/// start in its place"). Returns "<effect>@<from> -> <effect>@<to>", and "<effect>@<location> ->
+/// <effect>@<location> (started again)" for a start in place of the same kind.
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,

@@ -105,6 +105,15 @@ struct EffectDefinition {
   /// body, whose local mode just above the band reads in the band as more mass than a payload's, with a
   /// payload taken for it in the round). Empty when none.
   std::vector<std::string> also_sought_as;
+  /// Other starts for this effect in its own place, from its fitted parameters, for a band whose top is
+  /// `band_high_hz`: kinds of also_sought_as (a payload as an extra body of its mass at its height, its
+  /// joint stiff enough to put its local modes at twice the band's top), or the same kind with the
+  /// parameters a fit can leave in another basin set back (a payload of its mass at the host's centre of
+  /// mass: fitted from 0.7 kg, a 7 kg payload 115 mm above the hexapod stopped 33-40 mm off-axis and
+  /// 13 mm below). The relocation step refits the model with each in the effect's place, beside its
+  /// diagnosis, which starts the other kinds from their defaults on the model without the effect. Unset:
+  /// the diagnosis only.
+  std::function<std::vector<Effect>(const Effect&, double band_high_hz)> starts_in_place;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
