@@ -847,8 +847,21 @@ TEST(RelocateEffects, SeeksAPayloadAsAnExtraBodyToo) {
   EXPECT_LT(history.back().error, 0.6 * history.front().error);
 }
 
+// RelocateEffects with the options of the loop's diagnoses (LoopDiagnoseOptions), its progress and the
+// error before and after it printed.
+std::vector<std::string> RelocateAsTheLoopDoes(const model::ModelSpec& nominal, const synthetic::HiddenEffectCase& c,
+                                               const compare::Comparison& comparison, model::ModelSpec* current,
+                                               std::vector<LoopStep>* history) {
+  LoopOptions options;
+  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  const auto moved = RelocateEffects(nominal, c.measurement, comparison, options, LoopDiagnoseOptions(options, nominal), current, history);
+  const double floor = comparison.CalcNoiseFloor().floor;
+  std::cout << "before " << history->front().error / floor << "x the floor, after " << history->back().error / floor << "x\n";
+  return moved;
+}
+
 // A payload is also refitted as an extra body in its own place, from its state
-// (model::EffectDefinition::in_place_as). Seed 82296 of eval_loop (150 Hz band, 669 points): a 3.3 kg
+// (model::EffectDefinition::starts_in_place). Seed 82296 of eval_loop (150 Hz band, 669 points): a 3.3 kg
 // body on the hexapod with its local mode at 215 Hz, above the band. The loop's rounds took it for a
 // payload of 5.6 kg, 50 mm off-axis, at 1.13x the floor; the diagnosis of both kinds on the model
 // without it named the payload again. Started from the payload's mass and height, the body is found.
@@ -873,11 +886,7 @@ TEST(RelocateEffects, RefitsAPayloadAsAnExtraBodyInItsPlace) {
   model::SetEffects(current, {model::ParseEffect("payload@hexapod:mass=5.55835,x=0.0296012,y=-0.0407305,z=0.0463481", nominal)});
   std::vector<LoopStep> history = {{"the loop's rounds", "", comparison.Error(current)}};
   ASSERT_GT(history.front().error, 1.1 * floor);
-  LoopOptions options;
-  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  const auto moved =
-      RelocateEffects(nominal, c.measurement, comparison, options, LoopDiagnoseOptions(options, nominal), &current, &history);
-  std::cout << "before " << history.front().error / floor << "x the floor, after " << history.back().error / floor << "x\n";
+  const auto moved = RelocateAsTheLoopDoes(nominal, c, comparison, &current, &history);
   ASSERT_EQ(moved, std::vector<std::string>{"payload@hexapod -> extra-body@hexapod"});
   ASSERT_EQ(current.effects.size(), 1u);
   EXPECT_EQ(current.effects[0].name + "@" + current.effects[0].location, "extra-body@hexapod");
@@ -899,20 +908,12 @@ TEST(RelocateEffects, StartsAPayloadAgainFromItsMassAtTheCentre) {
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
   // The rounds' effects, fitted with the stiffnesses from the model as given: the basin they stopped in.
-  LoopOptions options;
-  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  EffectFitOptions eo;
-  eo.max_iterations = options.fit.max_iterations;
-  eo.probe_basins = true;
-  eo.initial_trust_region_radius = 1.0;
   const std::vector<model::Effect> rounds = {model::ParseEffect("delay@acquisition:tau=0.00053", nominal),
                                              model::ParseEffect("payload@hexapod:mass=5.87,x=-0.0327,y=0.0395,z=-0.0136", nominal)};
-  model::ModelSpec current = FitEffects(nominal, comparison, rounds, options.diagnose.params, eo).spec;
+  model::ModelSpec current = FitEffects(nominal, comparison, rounds, LoopOptions().diagnose.params, RoundsFitOptions()).spec;
   std::vector<LoopStep> history = {{"the loop's rounds", "", comparison.Error(current)}};
   ASSERT_GT(history.front().error, 3 * floor);
-  const auto moved =
-      RelocateEffects(nominal, c.measurement, comparison, options, LoopDiagnoseOptions(options, nominal), &current, &history);
-  std::cout << "before " << history.front().error / floor << "x the floor, after " << history.back().error / floor << "x\n";
+  const auto moved = RelocateAsTheLoopDoes(nominal, c, comparison, &current, &history);
   ASSERT_EQ(moved, std::vector<std::string>{"payload@hexapod -> payload@hexapod (started again)"});
   EXPECT_EQ(history.back().action, "refit payload@hexapod from another start in its place");
   const auto payload = std::find_if(current.effects.begin(), current.effects.end(), [](const model::Effect& e) { return e.name == "payload"; });
