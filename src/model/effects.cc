@@ -385,6 +385,9 @@ std::vector<EffectDefinition> MakeCatalogue() {
     d.rigid_limit = [](const Effect& e) {
       return Effect{"payload", e.location, Params{{"mass", Get(e, "mass")}, {"x", 0.0}, {"y", 0.0}, {"z", Get(e, "z")}}};
     };
+    // Its rigid limit, for the relocation step above the floor too: a body with a stiff joint still
+    // carries its own rotary inertia, which a payload (a point mass) does not.
+    d.starts_in_place = [limit = d.rigid_limit](const Effect& e, double) { return std::vector<Effect>{limit(e)}; };
     d.local_modes_hz = ExtraBodyLocalModesHz;
     d.adds_mass = true;
     d.repeatable = true;  // each its own local mode

@@ -181,10 +181,10 @@ TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
   EXPECT_EQ(rocking, 3);
 }
 
-// A payload's other starts in its place (the loop's relocation step refits each): the extra body it may
-// stand for, of its mass at its height with both local modes at twice the band's top, and the payload of
-// its mass at the host's centre of mass.
-TEST(Effects, APayloadsStartsInItsPlaceAreABodyAboveTheBandAndItsMassAtTheCentre) {
+// The other starts of an effect in its place (the loop's relocation step refits each). A payload's: the
+// extra body it may stand for, of its mass at its height with both local modes at twice the band's top,
+// and the payload of its mass at the host's centre of mass. An extra body's: its rigid limit.
+TEST(Effects, StartsInPlaceAreABodyAboveTheBandAMassAtTheCentreAndARigidLimit) {
   const ModelSpec base = DefaultModelSpec();
   const Effect payload = ParseEffect("payload@hexapod:mass=5.9,x=-0.033,y=0.04,z=-0.013", base);
   const auto& definition = FindEffectDefinition("payload");
@@ -196,6 +196,13 @@ TEST(Effects, APayloadsStartsInItsPlaceAreABodyAboveTheBandAndItsMassAtTheCentre
   EXPECT_EQ(starts[0].parameters.at("z"), -0.013);
   for (double hz : FindEffectDefinition("extra-body").local_modes_hz(starts[0])) EXPECT_NEAR(hz, 300.0, 1e-9);
   EXPECT_EQ(starts[1].ToString(), "payload@hexapod:mass=5.9000000000000004,x=0,y=0,z=0");
+  // An extra body's one start is its rigid limit.
+  const Effect body = ParseEffect("extra-body@hexapod:mass=10,k=1e9,kr=1e13,z=0.14", base);
+  const auto& body_definition = FindEffectDefinition("extra-body");
+  ASSERT_TRUE(body_definition.starts_in_place);
+  const std::vector<Effect> body_starts = body_definition.starts_in_place(body, 600.0);
+  ASSERT_EQ(body_starts.size(), 1u);
+  EXPECT_EQ(body_starts[0], body_definition.rigid_limit(body));
 }
 
 // The catalogue's route from couplings to the joint offset that makes them (the loop's merge and a
