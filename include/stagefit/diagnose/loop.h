@@ -174,8 +174,9 @@ DiagnoseOptions LoopDiagnoseOptions(const LoopOptions& options, const model::Mod
 /// (model::EffectDefinition::starts_in_place), from the loop's state and from the model as given; the
 /// best of these and the diagnosis' move is taken on the same rule (82296: a payload standing for a body
 /// above the band, 1.13x -> 1.01x as that body; 82315: a payload fitted off-axis and below its host's
-/// centre, 4.9x -> 1.05x started again at the centre; history: "refit <effect>@<location> from another
-/// start in its place"). Returns "<effect>@<from> -> <effect>@<to>", and "<effect>@<location> ->
+/// centre, 4.9x -> 1.05x started again at the centre, history: "refit <effect>@<location> from another
+/// start in its place"; 82343: a payload taken for a body with a joint far stiffer than the band,
+/// 2.43x -> 1.01x as its rigid limit). Returns "<effect>@<from> -> <effect>@<to>", and "<effect>@<location> ->
 /// <effect>@<location> (started again)" for a start in place of the same kind.
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,

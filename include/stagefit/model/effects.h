@@ -107,14 +107,13 @@ struct EffectDefinition {
   std::vector<std::string> also_sought_as;
   /// Other starts for this effect in its own place, from its fitted parameters, for a band whose top is
   /// `band_high_hz`: kinds of also_sought_as (a payload as an extra body of its mass at its height, its
-  /// joint stiff enough to put its local modes at twice the band's top), the rigid limit (an extra body
+  /// joint stiff enough to put its local modes at twice the band's top); the rigid limit (an extra body
   /// as the payload of its mass at its height: with a stiff joint it still has its own rotary inertia,
-  /// which a payload has not), or the same kind with the
-  /// parameters a fit can leave in another basin set back (a payload of its mass at the host's centre of
-  /// mass: fitted from 0.7 kg, a 7 kg payload 115 mm above the hexapod stopped 33-40 mm off-axis and
-  /// 13 mm below). The relocation step refits the model with each in the effect's place, beside its
-  /// diagnosis, which starts the other kinds from their defaults on the model without the effect. Unset:
-  /// the diagnosis only.
+  /// which a payload has not); or the same kind with the parameters a fit can leave in another basin
+  /// set back (a payload of its mass at the host's centre of mass: a 7 kg payload 115 mm above the
+  /// hexapod, fitted from 0.7 kg, stopped 33-40 mm off-axis and 13 mm below). The relocation step
+  /// refits the model with each in the effect's place, beside its diagnosis, which starts the other
+  /// kinds from their defaults on the model without the effect. Unset: the diagnosis only.
   std::function<std::vector<Effect>(const Effect&, double band_high_hz)> starts_in_place;
 };
 
