@@ -560,19 +560,29 @@ std::string LocationJoint(const std::string& location) { return location.substr(
 std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::string& name,
                                          const std::vector<std::string>& channels) {
   const EffectDefinition& def = FindEffectDefinition(name);
+  // The parts of the description, not those an effect added (an extra body and its joint): an effect
+  // there would stand or fall with that one, and the model without it could not be built (82351 of
+  // eval_loop: a coupling of ty_extra's joint beside the extra body of ty).
+  const ModelSpec& base = BaseOf(spec);
+  std::vector<const JointSpec*> joints;
+  for (const auto& j : spec.joints) {
+    if (std::any_of(base.joints.begin(), base.joints.end(), [&](const JointSpec& b) { return b.name == j.name; })) joints.push_back(&j);
+  }
   std::vector<std::string> locations;
   if (def.location_kind == "body") {
-    for (const auto& b : spec.bodies) locations.push_back(b.name);
+    for (const auto& b : base.bodies) locations.push_back(b.name);
   } else if (def.location_kind == "joint") {
-    for (const auto& j : spec.joints) locations.push_back(j.name);
+    for (const JointSpec* j : joints) locations.push_back(j->name);
   } else if (def.location_kind == "joint.DoF (imposed)") {
-    for (const auto& j : spec.joints) {
+    for (const JointSpec* jp : joints) {
+      const JointSpec& j = *jp;
       for (Dof d : kAllDofs) {
         if (j.imposed[index(d)]) locations.push_back(j.name + "." + std::string(stagefit::name(d)));
       }
     }
   } else if (def.location_kind == "joint.A-B") {
-    for (const auto& j : spec.joints) {
+    for (const JointSpec* jp : joints) {
+      const JointSpec& j = *jp;
       for (int a = 0; a < 6; ++a) {
         for (int b = a + 1; b < 6; ++b) {
           if (!j.imposed[a] && !j.imposed[b]) {

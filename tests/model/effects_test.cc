@@ -205,6 +205,22 @@ TEST(Effects, StartsInPlaceAreABodyAboveTheBandAMassAtTheCentreAndARigidLimit) {
   EXPECT_EQ(body_starts[0], body_definition.rigid_limit(body));
 }
 
+// Effects are located at the parts of the description, not at those another effect added: with an extra
+// body on ty, no coupling, servo or offset of its joint and no body on it (a loop once kept a coupling of
+// ty_extra's joint, and the model without the extra body could not be built).
+TEST(Effects, LocationsAreThePartsOfTheDescriptionNotThoseAnEffectAdded) {
+  const ModelSpec base = DefaultModelSpec();
+  ModelSpec with_body = base;
+  SetEffects(with_body, {ParseEffect("extra-body@ty:mass=20,k=1e8,kr=1e6,z=0.05", base)});
+  ASSERT_NE(FindJoint(with_body, "ty_extra"), -1);
+  for (const auto& d : EffectCatalogue()) {
+    const std::vector<std::string> before = EffectLocations(base, d.name), after = EffectLocations(with_body, d.name);
+    EXPECT_EQ(after, before) << d.name;
+  }
+  EXPECT_FALSE(EffectLocations(base, "coupled-stiffness").empty());
+  EXPECT_FALSE(EffectLocations(base, "extra-body").empty());
+}
+
 // The catalogue's route from couplings to the joint offset that makes them (the loop's merge and a
 // diagnosis' start from a leading coupling take it), and the joint a location names.
 TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {

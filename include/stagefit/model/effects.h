@@ -129,8 +129,9 @@ bool StandsFor(const EffectDefinition& one, const std::string& kind);
 /// The joint a location names: its part before the first '.' ("rz" of "rz.Dy-Rx" and of "rz").
 std::string LocationJoint(const std::string& location);
 
-/// Every location of `spec` where effect `name` applies. Channel locations (sensor-geometry) come from
-/// `channels` (the measurement's channel names) plus the model's sensors and excitations.
+/// Every location of `spec` where effect `name` applies: the bodies and joints of its description
+/// (BaseOf), not those its effects added (an extra body and its joint), whose effects could not outlive
+/// them. Channel locations (sensor-geometry) come from `channels` (the measurement's channel names).
 std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::string& name,
                                          const std::vector<std::string>& channels = {});
 
