@@ -564,9 +564,9 @@ std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::strin
   // there would stand or fall with that one, and the model without it could not be built (82351 of
   // eval_loop: a coupling of ty_extra's joint beside the extra body of ty).
   const ModelSpec& base = BaseOf(spec);
-  std::vector<const JointSpec*> joints;
+  std::vector<const JointSpec*> joints;  // spec's (a servo may have freed a DoF), where the base has them
   for (const auto& j : spec.joints) {
-    if (std::any_of(base.joints.begin(), base.joints.end(), [&](const JointSpec& b) { return b.name == j.name; })) joints.push_back(&j);
+    if (FindJoint(base, j.name) >= 0) joints.push_back(&j);
   }
   std::vector<std::string> locations;
   if (def.location_kind == "body") {
@@ -574,19 +574,17 @@ std::vector<std::string> EffectLocations(const ModelSpec& spec, const std::strin
   } else if (def.location_kind == "joint") {
     for (const JointSpec* j : joints) locations.push_back(j->name);
   } else if (def.location_kind == "joint.DoF (imposed)") {
-    for (const JointSpec* jp : joints) {
-      const JointSpec& j = *jp;
+    for (const JointSpec* j : joints) {
       for (Dof d : kAllDofs) {
-        if (j.imposed[index(d)]) locations.push_back(j.name + "." + std::string(stagefit::name(d)));
+        if (j->imposed[index(d)]) locations.push_back(j->name + "." + std::string(stagefit::name(d)));
       }
     }
   } else if (def.location_kind == "joint.A-B") {
-    for (const JointSpec* jp : joints) {
-      const JointSpec& j = *jp;
+    for (const JointSpec* j : joints) {
       for (int a = 0; a < 6; ++a) {
         for (int b = a + 1; b < 6; ++b) {
-          if (!j.imposed[a] && !j.imposed[b]) {
-            locations.push_back(j.name + "." + std::string(kDofNames[a]) + "-" + std::string(kDofNames[b]));
+          if (!j->imposed[a] && !j->imposed[b]) {
+            locations.push_back(j->name + "." + std::string(kDofNames[a]) + "-" + std::string(kDofNames[b]));
           }
         }
       }
