@@ -29,6 +29,13 @@ double Now() {
 /// "<effect>@<location>": how the loop names an effect in its history and its lists.
 std::string Key(const model::Effect& e) { return e.name + "@" + e.location; }
 
+/// The keys of `effects` (Key()), in order, space-separated.
+std::string KeysOf(const std::vector<model::Effect>& effects) {
+  std::string keys;
+  for (const model::Effect& e : effects) keys += (keys.empty() ? "" : " ") + Key(e);
+  return keys;
+}
+
 double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
@@ -559,6 +566,26 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
   return moved;
 }
 
+bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
+                       const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
+                       std::vector<LoopStep>* history) {
+  model::ModelSpec trial = model::BaseOf(as_given);
+  double trial_error = std::numeric_limits<double>::infinity();
+  try {
+    model::SetEffects(trial, current->effects);
+    const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
+    fit::FitModelWithBandContinuation(trial, measurement, options.diagnose.comparison, comparison, params, options.fit);
+    trial_error = comparison.Error(trial);
+  } catch (const std::exception&) {
+    return false;
+  }
+  // RelocateEffects' rule: more than 1 % lower (the floor's standard deviation is about 1 % of it).
+  if (!(trial_error < 0.99 * history->back().error)) return false;
+  history->push_back({"refit in band stages from the model as given", "", trial_error});
+  *current = std::move(trial);
+  return true;
+}
+
 std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                                const LoopOptions& options, model::ModelSpec* current,
                                                std::vector<LoopStep>* history) {
@@ -695,6 +722,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   const DiagnoseOptions d = LoopDiagnoseOptions(options, spec);
   // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
   std::set<std::string> dropped;
+  // The sets of effects (their keys) the model was refitted with in band stages near the floor.
+  std::set<std::string> refitted_in_bands;
   // Every effect the loop added before `newest` must still earn its place (DropUnneededEffects).
   auto drop_unneeded = [&](const model::Effect& newest) {
     for (const std::string& key : DropUnneededEffects(spec, comparison, options, newest, &current, &summary.history)) {
@@ -710,6 +739,20 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       if (done(summary.history.back().error) && !(first_at_floor && round == 0)) {
         summary.stop_reason = "at the noise floor";
         break;
+      }
+      // Near the floor with effects added, the model and its effects refitted in band stages from the
+      // model as given, once for each set of effects (RefitInBandStages).
+      if (TimesFloor(summary.history.back().error, floor) <= kBandStagesTimesFloor && current.effects.size() > spec.effects.size() &&
+          refitted_in_bands.insert(KeysOf(current.effects)).second) {
+        say("refit in band stages");
+        if (RefitInBandStages(spec, measurement, comparison, options, &current, &summary.history)) {
+          say(summary.history.back().action + ": error " + std::to_string(summary.history.back().error));
+          summary.effects_added = EffectTexts(current.effects);
+          if (done(summary.history.back().error)) {
+            summary.stop_reason = "at the noise floor";
+            break;
+          }
+        }
       }
       say("round " + std::to_string(round + 1) + ": diagnose");
       const DiagnoseSummary diagnosis = Diagnose(current, measurement, d);
