@@ -1253,8 +1253,8 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
   return with;
 }
 
-std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const std::vector<double>& grid,
-                                    const std::function<model::ModelSpec(double x)>& model_at) {
+std::vector<double> ScanErrors(const compare::Comparison& comparison, const std::vector<double>& grid,
+                               const std::function<model::ModelSpec(double x)>& model_at) {
   std::vector<double> errors(grid.size(), std::numeric_limits<double>::infinity());
   ParallelFor(static_cast<int>(grid.size()), [&](int k, int) {
     try {
@@ -1264,7 +1264,13 @@ std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const
       // A stiffness the model cannot take: left out of the scan.
     }
   });
+  return errors;
+}
+
+std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const std::vector<double>& grid,
+                                    const std::function<model::ModelSpec(double x)>& model_at) {
   if (grid.empty()) return std::nullopt;
+  const std::vector<double> errors = ScanErrors(comparison, grid, model_at);
   const size_t best = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
   if (!std::isfinite(errors[best])) return std::nullopt;
   return ScanMinimum{grid[best], errors[best]};
@@ -1296,13 +1302,38 @@ std::optional<ScanMinimum> ScanCouplingStiffness(const compare::Comparison& comp
   });
 }
 
+std::optional<size_t> BandScanPick(const std::vector<double>& errors) {
+  if (errors.empty()) return std::nullopt;
+  const size_t lowest = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
+  if (!std::isfinite(errors[lowest])) return std::nullopt;
+  if (lowest != 0 && lowest + 1 != errors.size()) return lowest;
+  // At an end of the band the mode has left it: the deepest dip inside the band instead, by its
+  // prominence (the lower of the highest errors on either side before a point lower than the dip).
+  std::optional<size_t> pick;
+  double pick_depth = 0;
+  for (size_t i = 1; i + 1 < errors.size(); ++i) {
+    if (!(errors[i] < errors[i - 1] && errors[i] <= errors[i + 1])) continue;
+    double left = errors[i], right = errors[i];
+    for (size_t j = i; j-- > 0 && !(errors[j] < errors[i]);) left = std::max(left, errors[j]);
+    for (size_t j = i + 1; j < errors.size() && !(errors[j] < errors[i]); ++j) right = std::max(right, errors[j]);
+    const double depth = std::min(left, right) - errors[i];
+    if (std::isfinite(depth) && depth > pick_depth) {
+      pick = i;
+      pick_depth = depth;
+    }
+  }
+  return pick ? pick : std::optional<size_t>(lowest);
+}
+
 std::optional<double> ScanBandHz(const compare::Comparison& comparison,
                                  const std::function<model::ModelSpec(double hz)>& model_at) {
   const Eigen::VectorXd& f = comparison.frequency_hz();
   if (f.size() < 2) return std::nullopt;
-  const auto best = ScanLogGrid(comparison, f(0), f(f.size() - 1), kModeScanStep, model_at);
-  if (!best) return std::nullopt;
-  return best->at;
+  std::vector<double> grid;
+  for (double hz = f(0); hz <= f(f.size() - 1); hz *= 1 + kModeScanStep) grid.push_back(hz);
+  const std::optional<size_t> pick = BandScanPick(ScanErrors(comparison, grid, model_at));
+  if (!pick) return std::nullopt;
+  return grid[*pick];
 }
 
 std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,

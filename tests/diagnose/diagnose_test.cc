@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -61,16 +62,16 @@ void CutToScreening(DiagnoseOptions* options, int num_refined) {
 
 // eval_loop's case `seed` (MakeEvalLoopCase, its first effect `expected`) diagnosed with `effects` from
 // the loop's first fit (band continuation), the stages after the screening cut to its best two
-// (CutToScreening); `truth_error` is the noise-free truth's error.
+// (CutToScreening); `truth_error` is the noise-free truth's error. The case hides `num_effects`.
 struct FirstFitDiagnosis {
   synthetic::HiddenEffectCase c;
   DiagnoseSummary summary;
   double truth_error = 0;
 };
 void DiagnoseFromFirstFit(uint64_t seed, double fmax_hz, int num_frequencies, const std::string& expected,
-                          const std::vector<std::string>& effects, FirstFitDiagnosis* run) {
+                          const std::vector<std::string>& effects, FirstFitDiagnosis* run, size_t num_effects = 1) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(seed, 1, fmax_hz, num_frequencies, 0, expected, &run->c));
+  ASSERT_NO_FATAL_FAILURE(MakeEvalLoopCase(seed, num_effects, fmax_hz, num_frequencies, 0, expected, &run->c));
   DiagnoseOptions options = QuietOptions();
   const compare::Comparison comparison = compare::Comparison::Create(nominal, run->c.measurement, options.comparison);
   model::ModelSpec first_fit = nominal;
@@ -335,6 +336,36 @@ TEST(Diagnose, FindsAnExtraBodyTheBaselineStiffnessesHid) {
   EXPECT_GT(run.summary.error_baseline, 10 * run.floor);
   EXPECT_NEAR(best.effect.parameters.at("mass"), body.mass_kg, 0.1 * body.mass_kg);
   EXPECT_NEAR(best.effect.parameters.at("z"), body.com_W.z() - host.com_W.z(), 0.01);
+}
+
+// A band scan starts from its lowest error, unless that is at an end of the band (the mode has left it):
+// then from the deepest dip inside, by prominence, not the lowest local minimum. The first vector is
+// 82366's scan of a 1.5 kg body on the hexapod, every third point from 5 Hz in times the floor
+// (BandScanPick's comment).
+TEST(BandScanPick, TakesTheDeepestDipInsideTheBandWhenTheLowestIsAtItsEnd) {
+  const std::vector<double> scan = {7.196, 7.197, 7.206, 7.395, 7.478, 7.297, 7.280, 7.383, 7.854,
+                                    10.436, 11.629, 9.122, 8.768, 12.407, 17.537, 18.455, 21.124, 28.595};
+  EXPECT_EQ(BandScanPick(scan), std::optional<size_t>(12));  // 8.768, not 7.280 (prominence 0.20 against 2.86)
+  EXPECT_EQ(BandScanPick({5.0, 3.0, 4.0, 3.5, 6.0}), std::optional<size_t>(1));  // the lowest, inside: as before
+  EXPECT_EQ(BandScanPick({9.0, 5.0, 8.0, 4.0}), std::optional<size_t>(1));       // the lowest at the top end
+  EXPECT_EQ(BandScanPick({1.0, 2.0, 3.0}), std::optional<size_t>(0));             // no dip: the lowest
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(BandScanPick({inf, 6.0, inf, 2.0}), std::optional<size_t>(3));        // unbuildable points are no dip
+  EXPECT_EQ(BandScanPick({inf, inf}), std::nullopt);
+  EXPECT_EQ(BandScanPick({}), std::nullopt);
+}
+
+// An extra body whose band scan is lowest at the band's end is started at the scan's dip (BandScanPick).
+// Seed 82366 of eval_loop (a 2.9 kg body on the hexapod with its local mode at 91 Hz, and a weak servo
+// of ty.Dy; 600 Hz band, 444 points): from the first fit (7.15x the floor) the loop's first round added
+// a loss factor of ry (5.05x), the body's starts all above the baseline after the screening, and it
+// ended at 4.4x. Started at the dip, the body leads.
+TEST(Diagnose, StartsABodyAtTheScansDipWhenItsLowestIsAtTheBandsEnd) {
+  FirstFitDiagnosis run;
+  ASSERT_NO_FATAL_FAILURE(
+      DiagnoseFromFirstFit(82366, 600, 444, "extra-body@hexapod", {"extra-body", "structural-damping"}, &run, 2));
+  ExpectLeader(run.summary, "extra-body@hexapod", 0.5 * run.summary.error_baseline);
+  EXPECT_NEAR(run.summary.candidates[0].effect.parameters.at("mass"), 2.9, 0.4);
 }
 
 // The rocking scan of an extra-body candidate (ScanRockingHz) finds the rocking frequency of a body the
