@@ -198,8 +198,8 @@ constexpr double kBandStagesTimesFloor = 2.0;
 /// eval_loop: a payload and a coupling of the hexapod, both right, 1.09x the floor; a coupling of the
 /// granite added beside them reached 1.04x; in band stages the two reach 1.05x. 82354: a coupling of the
 /// hexapod and a delay, both right, 1.60x; in band stages 1.02x). Taken when more than
-/// 1 % lower than `history`'s last error: `current` becomes that model and a "refit (effects and model
-/// from the model as given, in band stages)" step is appended. False, nothing changed, otherwise.
+/// 1 % lower than `history`'s last error: `current` becomes that model and a "refit in band stages from
+/// the model as given" step is appended. False, nothing changed, otherwise.
 bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                        const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
                        std::vector<LoopStep>* history);
