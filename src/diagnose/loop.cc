@@ -742,8 +742,8 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       }
       // Near the floor with effects added, the model and its effects refitted in band stages from the
       // model as given, once for each set of effects (RefitInBandStages).
-      if (TimesFloor(summary.history.back().error, floor) <= kBandStagesTimesFloor && current.effects.size() > spec.effects.size() &&
-          refitted_in_bands.insert(KeysOf(current.effects)).second) {
+      if (TimesFloor(summary.history.back().error, floor) <= kBandStagesTimesFloor &&
+          current.effects.size() > spec.effects.size() && refitted_in_bands.insert(KeysOf(current.effects)).second) {
         say("refit in band stages");
         if (RefitInBandStages(spec, measurement, comparison, options, &current, &summary.history)) {
           say(summary.history.back().action + ": error " + std::to_string(summary.history.back().error));

@@ -339,15 +339,15 @@ TEST(Diagnose, FindsAnExtraBodyTheBaselineStiffnessesHid) {
 }
 
 // A band scan starts from its lowest error, unless that is at an end of the band (the mode has left it):
-// then from the deepest dip inside, by prominence, not the lowest local minimum. The first vector is
-// 82366's scan of a 1.5 kg body on the hexapod, every third point from 5 Hz in times the floor
-// (BandScanPick's comment).
+// then from the deepest dip inside, by prominence, not the lowest local minimum. The first vector holds
+// points of 82366's scan of a 1.5 kg body on the hexapod (times the floor, from 5 Hz up, some points
+// left out; BandScanPick's comment): lowest at 5 Hz, a shallow dip near 30 Hz, the deep one at 93 Hz.
 TEST(BandScanPick, TakesTheDeepestDipInsideTheBandWhenTheLowestIsAtItsEnd) {
   const std::vector<double> scan = {7.196, 7.197, 7.206, 7.395, 7.478, 7.297, 7.280, 7.383, 7.854,
                                     10.436, 11.629, 9.122, 8.768, 12.407, 17.537, 18.455, 21.124, 28.595};
   EXPECT_EQ(BandScanPick(scan), std::optional<size_t>(12));  // 8.768, not 7.280 (prominence 0.20 against 2.86)
   EXPECT_EQ(BandScanPick({5.0, 3.0, 4.0, 3.5, 6.0}), std::optional<size_t>(1));  // the lowest, inside: as before
-  EXPECT_EQ(BandScanPick({9.0, 5.0, 8.0, 4.0}), std::optional<size_t>(1));       // the lowest at the top end
+  EXPECT_EQ(BandScanPick({9.0, 5.0, 8.0, 4.0}), std::optional<size_t>(1));       // the lowest at the top end: the dip
   EXPECT_EQ(BandScanPick({1.0, 2.0, 3.0}), std::optional<size_t>(0));             // no dip: the lowest
   const double inf = std::numeric_limits<double>::infinity();
   EXPECT_EQ(BandScanPick({inf, 6.0, inf, 2.0}), std::optional<size_t>(3));        // unbuildable points are no dip
