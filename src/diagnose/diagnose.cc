@@ -1276,12 +1276,19 @@ std::optional<ScanMinimum> ScanGrid(const compare::Comparison& comparison, const
   return ScanMinimum{grid[best], errors[best]};
 }
 
+namespace {
+/// The points from `from` to `to` in relative steps `step` (empty unless 0 < from <= to and step > 0).
+std::vector<double> LogGrid(double from, double to, double step) {
+  std::vector<double> grid;
+  if (!(from > 0) || !(to >= from) || !(step > 0)) return grid;
+  for (double x = from; x <= to; x *= 1 + step) grid.push_back(x);
+  return grid;
+}
+}  // namespace
+
 std::optional<ScanMinimum> ScanLogGrid(const compare::Comparison& comparison, double from, double to, double step,
                                        const std::function<model::ModelSpec(double x)>& model_at) {
-  if (!(from > 0) || !(to >= from) || !(step > 0)) return std::nullopt;
-  std::vector<double> grid;
-  for (double x = from; x <= to; x *= 1 + step) grid.push_back(x);
-  return ScanGrid(comparison, grid, model_at);
+  return ScanGrid(comparison, LogGrid(from, to, step), model_at);
 }
 
 std::optional<ScanMinimum> ScanCouplingStiffness(const compare::Comparison& comparison, const model::ModelSpec& spec,
@@ -1329,8 +1336,7 @@ std::optional<double> ScanBandHz(const compare::Comparison& comparison,
                                  const std::function<model::ModelSpec(double hz)>& model_at) {
   const Eigen::VectorXd& f = comparison.frequency_hz();
   if (f.size() < 2) return std::nullopt;
-  std::vector<double> grid;
-  for (double hz = f(0); hz <= f(f.size() - 1); hz *= 1 + kModeScanStep) grid.push_back(hz);
+  const std::vector<double> grid = LogGrid(f(0), f(f.size() - 1), kModeScanStep);
   const std::optional<size_t> pick = BandScanPick(ScanErrors(comparison, grid, model_at));
   if (!pick) return std::nullopt;
   return grid[*pick];

@@ -570,14 +570,14 @@ bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfD
                        const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
                        std::vector<LoopStep>* history) {
   model::ModelSpec trial = model::BaseOf(as_given);
-  double trial_error = std::numeric_limits<double>::infinity();
+  double trial_error = 0;
   try {
     model::SetEffects(trial, current->effects);
     const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
     fit::FitModelWithBandContinuation(trial, measurement, options.diagnose.comparison, comparison, params, options.fit);
     trial_error = comparison.Error(trial);
   } catch (const std::exception&) {
-    return false;
+    return false;  // a model the fit made unbuildable: nothing changed
   }
   // RelocateEffects' rule: more than 1 % lower (the floor's standard deviation is about 1 % of it).
   if (!(trial_error < 0.99 * history->back().error)) return false;

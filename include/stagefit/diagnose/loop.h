@@ -196,7 +196,7 @@ constexpr double kBandStagesTimesFloor = 2.0;
 /// start from the loop's state and from the model as given fitted on the whole band at once, and an
 /// effect beside stiffnesses in the wrong basin leaves a misfit a weak candidate takes up (82311 of
 /// eval_loop: a payload and a coupling of the hexapod, both right, 1.09x the floor; a coupling of the
-/// granite added beside them reached 1.04x; in band stages the two reach 1.05x. 82354: a coupling of the
+/// granite added beside them reached 1.04x; in band stages the two reach 1.04x. 82354: a coupling of the
 /// hexapod and a delay, both right, 1.60x; in band stages 1.02x). Taken when more than
 /// 1 % lower than `history`'s last error: `current` becomes that model and a "refit in band stages from
 /// the model as given" step is appended. False, nothing changed, otherwise.
