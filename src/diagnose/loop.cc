@@ -72,24 +72,6 @@ std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const
   }
 }
 
-/// The model as given with `effects`, as fitted, all their parameters and the model's fitted in band
-/// stages (fit::FitModelWithBandContinuation, the route of the loop's first fit); nullopt when the fit
-/// made the model unbuildable.
-std::optional<model::ModelSpec> FitInBandStages(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
-                                                const compare::Comparison& comparison, const LoopOptions& options,
-                                                const std::vector<model::Effect>& effects) {
-  model::ModelSpec trial = model::BaseOf(as_given);
-  try {
-    model::SetEffects(trial, effects);
-    const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
-    fit::FitModelWithBandContinuation(trial, measurement, options.diagnose.comparison, comparison, params, options.fit);
-    comparison.Error(trial);  // throws for a model the fit made unbuildable
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-  return trial;
-}
-
 /// `current` with `effects` in place of its own, refitted from two starts, the better kept: the loop's
 /// state (the model's and the kept effects' parameters as they are), and the model as given with
 /// `effects` (FitFromAsGiven). The error is +infinity when both fail.
@@ -587,18 +569,24 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
 bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                        const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
                        std::vector<LoopStep>* history) {
-  std::optional<model::ModelSpec> trial = FitInBandStages(as_given, measurement, comparison, options, current->effects);
-  if (!trial) return false;  // a model the fit made unbuildable: nothing changed
-  const double trial_error = comparison.Error(*trial);
+  model::ModelSpec trial = model::BaseOf(as_given);
+  double trial_error = 0;
+  try {
+    model::SetEffects(trial, current->effects);
+    const auto params = model::MatchParameters(trial, model::WithEffectParameters(options.diagnose.params, trial));
+    fit::FitModelWithBandContinuation(trial, measurement, options.diagnose.comparison, comparison, params, options.fit);
+    trial_error = comparison.Error(trial);
+  } catch (const std::exception&) {
+    return false;  // a model the fit made unbuildable: nothing changed
+  }
   // RelocateEffects' rule: more than 1 % lower (the floor's standard deviation is about 1 % of it).
   if (!(trial_error < 0.99 * history->back().error)) return false;
   history->push_back({"refit in band stages from the model as given", "", trial_error});
-  *current = std::move(*trial);
+  *current = std::move(trial);
   return true;
 }
 
-std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
-                                                     const compare::Comparison& comparison,
+std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                                      const LoopOptions& options, const DiagnoseSummary& diagnosis,
                                                      const std::set<std::string>& dropped, model::ModelSpec* current,
                                                      std::vector<LoopStep>* history) {
@@ -614,13 +602,13 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
       tried.push_back(&c);
     }
   }
-  std::vector<std::optional<model::ModelSpec>> fits(tried.size());
+  std::vector<std::optional<EffectsFit>> fits(tried.size());
   std::vector<std::function<void()>> jobs;
   for (size_t i = 0; i < tried.size(); ++i) {
     jobs.push_back([&, i] {
       std::vector<model::Effect> effects = current->effects;
       effects.push_back(tried[i]->effect);
-      fits[i] = FitInBandStages(as_given, measurement, comparison, options, effects);
+      fits[i] = FitFromAsGiven(as_given, comparison, effects, options);
     });
   }
   RunConcurrently(jobs);
@@ -630,18 +618,23 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
   double best_error = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < tried.size(); ++i) {
     if (!fits[i]) continue;
-    const double e = comparison.Error(*fits[i]);
+    const double e = comparison.Error(fits[i]->spec);
     const model::Effect& effect = tried[i]->effect;
     const int k = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size() - effect.held.size());
     const double delta_bic = n * std::log(std::pow(e / before, 2)) + k * std::log(n);
+    if (options.progress) {
+      char line[160];
+      std::snprintf(line, sizeof line, "  with %s: error %.5f (%.2f x the floor)", Key(effect).c_str(), e, TimesFloor(e, floor));
+      options.progress(line);
+    }
     if (e < (1 - options.diagnose.min_relative_improvement) * before && delta_bic < 0 &&
-        TimesFloor(e, floor) <= kBandStagesTimesFloor && e < best_error) {
+        TimesFloor(e, floor) <= options.rounds_above_times_floor && e < best_error) {
       best = i;
       best_error = e;
     }
   }
   if (!best) return std::nullopt;
-  *current = std::move(*fits[*best]);
+  *current = fits[*best]->spec;
   const model::Effect& added = current->effects.back();
   history->push_back({"add " + Key(added) + " beside " + Key(diagnosis.candidates[0].effect) +
                           " (fitted together from the model as given)",
@@ -875,8 +868,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       // given, where the fitted model's bent stiffnesses cannot hold them (TryRunnersUpFromAsGiven).
       if (TimesFloor(summary.history.back().error, floor) > kBandStagesTimesFloor) {
         say("fitting the round's next candidates beside " + Key(best.effect) + " from the model as given");
-        if (const auto added = TryRunnersUpFromAsGiven(spec, measurement, comparison, options, diagnosis, dropped, &current,
-                                                      &summary.history)) {
+        if (const auto added = TryRunnersUpFromAsGiven(spec, comparison, options, diagnosis, dropped, &current, &summary.history)) {
           say(summary.history.back().action + ": error " + std::to_string(summary.history.back().error));
           drop_unneeded(*added);
           summary.effects_added = EffectTexts(current.effects);

@@ -1022,7 +1022,7 @@ TEST(TryRunnersUpFromAsGiven, FitsTheLossFactorTheBentStiffnessesHold) {
 
   model::ModelSpec current = with_payload;
   std::vector<LoopStep> history = history_with_payload;
-  const auto added = TryRunnersUpFromAsGiven(nominal, c.measurement, comparison, LoopOptions(), diagnosis, {}, &current, &history);
+  const auto added = TryRunnersUpFromAsGiven(nominal, comparison, LoopOptions(), diagnosis, {}, &current, &history);
   ASSERT_TRUE(added);
   EXPECT_EQ(added->name + "@" + added->location, "structural-damping@rz");
   EXPECT_EQ(history.back().action, "add structural-damping@rz beside payload@hexapod (fitted together from the model as given)");
@@ -1036,7 +1036,7 @@ TEST(TryRunnersUpFromAsGiven, FitsTheLossFactorTheBentStiffnessesHold) {
   const auto nothing_changes = [&](const DiagnoseSummary& d, const std::set<std::string>& dropped) {
     model::ModelSpec unchanged = with_payload;
     std::vector<LoopStep> steps = history_with_payload;
-    EXPECT_FALSE(TryRunnersUpFromAsGiven(nominal, c.measurement, comparison, LoopOptions(), d, dropped, &unchanged, &steps));
+    EXPECT_FALSE(TryRunnersUpFromAsGiven(nominal, comparison, LoopOptions(), d, dropped, &unchanged, &steps));
     EXPECT_EQ(steps.size(), 1u);
     EXPECT_EQ(unchanged.effects, with_payload.effects);
   };

@@ -210,24 +210,25 @@ constexpr int kRunnersUpTried = 2;
 
 /// The loop's step after a round added its leader (and dropped what no longer earns its place) with the
 /// model still above kBandStagesTimesFloor: up to kRunnersUpTried of the round's next candidates, each
-/// fitted together with `current`'s effects, as fitted, from the model as given in band stages (as
-/// RefitInBandStages), concurrently. Tried: a negative delta BIC, plausible, not in `dropped` or the
-/// model, and at another joint or body than the leader (at the leader's place stand its mimics: an extra
-/// body beside a payload). The lowest is taken when it lowers `history`'s last error by the share and
-/// the delta BIC by which a round adds an effect (DiagnoseOptions::min_relative_improvement) and is
-/// within kBandStagesTimesFloor: `current` becomes that model and an "add <effect>@<location> beside
-/// <leader> (fitted together from the model as given)" step is appended. A wrong effect seldom takes the
-/// model that near the floor; far from it, one can lower the error by the share (82385 of eval_loop: a
-/// sensor's correction beside a coupling, 15.6x -> 14.2x the floor).
+/// fitted together with `current`'s effects, as fitted, from the model as given (FitFromAsGiven, the
+/// start (b) of the round's refit), concurrently. Tried: a negative delta BIC, plausible, not in
+/// `dropped` or the model, and at another joint or body than the leader (at the leader's place stand
+/// its mimics: an extra body beside a payload). The lowest is taken when it lowers `history`'s last
+/// error by the share and the delta BIC by which a round adds an effect
+/// (DiagnoseOptions::min_relative_improvement) and reaches LoopOptions::rounds_above_times_floor, where
+/// the rounds end: `current` becomes that model and an "add <effect>@<location> beside <leader> (fitted
+/// together from the model as given)" step is appended. Short of that the rounds go on as before: a
+/// wrong effect fitted so can take a model a good way down (82473 of eval_loop: a loss factor of rz
+/// beside a coupling of the hexapod, 2.76x -> 1.71x the floor; 82474: a sensor's correction beside an
+/// extra body, 2.94x -> 1.19x), and only later rounds drop it again.
 /// The next round's diagnosis screens its candidates on the fitted model, whose stiffnesses the first
 /// fit bent to stand in for what is still missing, and from there a candidate can stay in that basin:
 /// 82314 of eval_loop (a 6.2 kg payload on the hexapod and a loss factor of rz) added the payload at
 /// 3.54x the floor, where the loss factor, third in that round, fitted from the model's state ended at
-/// 4.9x, and the loop added three other effects (1.22x, 0.025 off the noise-free truth); fitted with
-/// the payload from the model as given in band stages, the loss factor reaches 1.02x. Returns the
-/// effect added, or nullopt with nothing changed.
-std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
-                                                     const compare::Comparison& comparison,
+/// 4.9x, and the loop added three other effects (1.22x, 0.025 off the noise-free truth, 592 s); fitted
+/// with the payload from the model as given, the loss factor reaches 1.02x. Returns the effect added, or
+/// nullopt with nothing changed.
+std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                                      const LoopOptions& options, const DiagnoseSummary& diagnosis,
                                                      const std::set<std::string>& dropped, model::ModelSpec* current,
                                                      std::vector<LoopStep>* history);
