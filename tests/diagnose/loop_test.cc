@@ -986,10 +986,10 @@ TEST(RefitInBandStages, TakesTheRightEffectsOutOfAStiffnessBasin) {
 // A round's next candidate fitted beside its leader from the model as given. Seed 82314 of eval_loop (two
 // effects, 150 Hz band, 851 points): a 6.2 kg payload 128 mm above the hexapod's centre of mass and a
 // loss factor of 0.043 in rz. The first round ranks the payload first, an extra body of the hexapod
-// second and the loss factor third (eta 0.078). Fitted beside the payload from the model the payload's
-// fit left (stiffnesses the first fit bent: rz's Dx 40x too soft), the loss factor stays far above the
-// floor and a loop went on to add three other effects; fitted together with the payload from the model
-// as given, it is at the floor with the truth's eta.
+// second and the loss factor third (eta 0.078). Fitted beside the payload from the payload's model (its
+// stiffnesses bent for the missing loss factor: rz's Dx 40x too soft), the loss factor stays far above
+// the floor, and a loop went on to add three other effects; fitted together with the payload from the
+// model as given, it is at the floor near the truth's eta.
 TEST(TryRunnersUpFromAsGiven, FitsTheLossFactorTheBentStiffnessesHold) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 82314, synthetic::EvalLoopCaseOptions(2, 150, 851));
