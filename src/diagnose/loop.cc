@@ -40,6 +40,17 @@ double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
 
+/// The change of the Bayesian information criterion from a model at `error_before` to one at `error_after`
+/// with `k` more parameters, on `n` residuals (< 0 supports the second).
+double DeltaBic(double error_after, double error_before, int k, double n) {
+  return n * std::log(std::pow(error_after / error_before, 2)) + k * std::log(n);
+}
+
+/// The parameters of `effect` a fit sets: its catalogue entry's less those it holds.
+int FreeParameters(const model::Effect& effect) {
+  return static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size() - effect.held.size());
+}
+
 /// `spec`'s parameters of LoopOptions::diagnose.params and its effects' fitted from where they are (FitModel).
 void FitParametersAndEffects(model::ModelSpec* spec, const compare::Comparison& comparison, const LoopOptions& options) {
   fit::FitModel(*spec, comparison, model::MatchParameters(*spec, model::WithEffectParameters(options.diagnose.params, *spec)),
@@ -296,7 +307,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, without);
     const double with_error = history->back().error;
     const int num_parameters = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size());
-    const double delta_bic = n * std::log(std::pow(with_error / trial_error, 2)) + num_parameters * std::log(n);
+    const double delta_bic = DeltaBic(with_error, trial_error, num_parameters, n);
     // It also earns its place when the model is at the floor with it and would need another round
     // without it: near the floor no effect lowers the error by the share (a model at 1.07x can fall by
     // 6.5 % at most). 15011 of eval_loop: a ty.Dy servo added at 1.08x -> 1.02x, then a turned a4y's
@@ -393,12 +404,9 @@ bool TriedCandidateEarnsPlace(double error_before, double error_after, const mod
   // The loop's round threshold crossed (NaN, the floor unknown: never).
   const bool reaches_floor = error_after <= round_threshold && error_before > round_threshold;
   if (removed.empty() && !reaches_floor) return false;
-  auto free_parameters = [](const model::Effect& e) {
-    return static_cast<int>(model::FindEffectDefinition(e.name).parameters.size() - e.held.size());
-  };
-  int k = free_parameters(added);
-  for (const model::Effect& e : removed) k -= free_parameters(e);
-  return num_residuals * std::log(std::pow(error_after / error_before, 2)) + k * std::log(num_residuals) < 0;
+  int k = FreeParameters(added);
+  for (const model::Effect& e : removed) k -= FreeParameters(e);
+  return DeltaBic(error_after, error_before, k, num_residuals) < 0;
 }
 
 std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_given, const model::ModelSpec& final, double band_low_hz) {
@@ -620,8 +628,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
     if (!fits[i]) continue;
     const double e = comparison.Error(fits[i]->spec);
     const model::Effect& effect = tried[i]->effect;
-    const int k = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size() - effect.held.size());
-    const double delta_bic = n * std::log(std::pow(e / before, 2)) + k * std::log(n);
+    const double delta_bic = DeltaBic(e, before, FreeParameters(effect), n);
     if (options.progress) {
       char line[160];
       std::snprintf(line, sizeof line, "  with %s: error %.5f (%.2f x the floor)", Key(effect).c_str(), e, TimesFloor(e, floor));
