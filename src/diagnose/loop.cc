@@ -691,6 +691,80 @@ std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given,
   return merged;
 }
 
+std::vector<std::string> ReduceToTheMimicsLeft(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                               const LoopOptions& options, model::ModelSpec* current,
+                                               std::vector<LoopStep>* history) {
+  std::vector<std::string> reduced;
+  const size_t first = as_given.effects.size();
+  for (size_t k = first; k < current->effects.size(); ++k) {
+    const model::Effect one = current->effects[k];
+    const model::EffectDefinition& def = model::FindEffectDefinition(one.name);
+    if (!def.to_mimics) continue;
+    // Its mimics the loop added at its joint, and the other effects.
+    const std::string joint = model::LocationJoint(one.location);
+    std::vector<model::Effect> mimics, others;
+    for (size_t i = 0; i < current->effects.size(); ++i) {
+      if (i == k) continue;
+      const model::Effect& e = current->effects[i];
+      const bool mimic = i >= first && model::StandsFor(def, e.name) && model::LocationJoint(e.location) == joint;
+      (mimic ? mimics : others).push_back(e);
+    }
+    if (mimics.empty()) continue;
+    model::ModelSpec without = *current;
+    model::SetEffects(without, others);
+    // What the effect and its mimics make together, term by term: the mimics it makes, each summed with
+    // the added one of its kind and place.
+    std::vector<model::Effect> terms = def.to_mimics(without, one);
+    for (const model::Effect& m : mimics) {
+      const auto t = std::find_if(terms.begin(), terms.end(), [&](const model::Effect& e) { return Key(e) == Key(m); });
+      if (t == terms.end()) {
+        terms.push_back(m);
+        continue;
+      }
+      for (auto& [name, value] : t->parameters) value += m.parameters.at(name);
+    }
+    // Each term's size: its largest parameter on the scale of its range (a coupling: on
+    // 0.95 sqrt(k_a k_b)); the largest first. A start outside a range is put at its bound.
+    std::vector<std::pair<double, model::Effect>> sized;
+    for (model::Effect& t : terms) {
+      double size = 0;
+      for (auto& [name, value] : t.parameters) {
+        const model::EffectParameterRange r = model::EffectRange(without, t, name);
+        value = std::clamp(value, r.lower, r.upper);
+        size = std::max(size, std::abs(value) / r.scale);
+      }
+      sized.emplace_back(size, t);
+    }
+    std::stable_sort(sized.begin(), sized.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    int parameters = FreeParameters(one);
+    for (const model::Effect& m : mimics) parameters += FreeParameters(m);
+    // The largest term alone, then the two largest, ...: with fewer parameters than the effect and its
+    // mimics, and none that cancels out.
+    std::vector<model::Effect> left;
+    int left_parameters = 0;
+    for (size_t m = 0; m < sized.size() && static_cast<int>(m) < kMimicsLeftTried; ++m) {
+      if (!(sized[m].first > kMimicCancelled * sized.front().first)) break;
+      left.push_back(sized[m].second);
+      left_parameters += FreeParameters(left.back());
+      if (left_parameters >= parameters) break;
+      std::vector<model::Effect> with = others;
+      with.insert(with.end(), left.begin(), left.end());
+      auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
+      // Fewer parameters, as close to the data (within kRigidLimitTolerance), as a merge is taken.
+      if (!(trial_error <= (1 + kRigidLimitTolerance) * history->back().error)) continue;
+      std::string from = Key(one), to;
+      for (const model::Effect& e : mimics) from += ", " + Key(e);
+      for (size_t i = others.size(); i < trial.effects.size(); ++i) to += (to.empty() ? "" : ", ") + Key(trial.effects[i]);
+      history->push_back({"reduce " + from + " to " + to + " (what they make together)", trial.effects.back().ToString(), trial_error});
+      reduced.push_back(from + " -> " + to);
+      *current = trial;
+      break;
+    }
+    if (!reduced.empty()) break;  // the effects are looked at again in the next call
+  }
+  return reduced;
+}
+
 std::vector<std::string> HoldParametersAtBounds(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                                 const compare::Comparison& comparison, const LoopOptions& options,
                                                 model::ModelSpec* current, std::vector<LoopStep>* history) {
@@ -887,9 +961,16 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   // The steps after the rounds: effects merged and moved, a turned channel, rigid limits; then the
   // plausibility check.
   // Several effects one effect can be (two couplings of a joint: its stiffness centre off its origin).
+  // And the reverse: one such effect beside its own mimics, which cancel all but some of what it makes
+  // (a joint offset beside a coupling of its joint: the one coupling left).
   auto merge = [&] {
     for (const std::string& change : MergeMimickingEffects(spec, comparison, options, &current, &summary.history)) {
       say("merged " + change + ": error " + std::to_string(summary.history.back().error));
+      drop_unneeded(current.effects.back());
+      summary.effects_added = EffectTexts(current.effects);
+    }
+    for (const std::string& change : ReduceToTheMimicsLeft(spec, comparison, options, &current, &summary.history)) {
+      say("reduced " + change + ": error " + std::to_string(summary.history.back().error));
       drop_unneeded(current.effects.back());
       summary.effects_added = EffectTexts(current.effects);
     }

@@ -225,25 +225,28 @@ void ApplyJointOffset(ModelSpec& spec, const Effect& e, const Getter& get) {
 // joint's springs act on u + theta x r, so about the origin the stiffness gains the couplings
 // K(Dx,Ry) = kx dz, K(Dy,Rx) = -ky dz, K(Dx,Rz) = -kx dy, K(Dz,Rx) = kz dy, K(Dy,Rz) = ky dx,
 // K(Dz,Ry) = -kz dx (and the damping the same with the c's; tests/model/effects_test.cc checks the
-// equivalence to rounding). Each coupling given is one equation for one component; a component is
-// the least-squares solution of its equations, 0 without any.
+// equivalence to rounding), and its rotations the second-order terms k r^2.
+struct OffsetCouplingTerm {
+  Dof translation, rotation;
+  int component;  // of r
+  double sign;    // K(translation, rotation) = sign k_translation r_component
+};
+constexpr OffsetCouplingTerm kOffsetCouplingTerms[] = {{Dof::kDx, Dof::kRy, 2, 1}, {Dof::kDy, Dof::kRx, 2, -1},
+                                                      {Dof::kDx, Dof::kRz, 1, -1}, {Dof::kDz, Dof::kRx, 1, 1},
+                                                      {Dof::kDy, Dof::kRz, 0, 1},  {Dof::kDz, Dof::kRy, 0, -1}};
+constexpr const char* kOffsetComponents[3] = {"dx", "dy", "dz"};
+
+// Each coupling given is one equation for one component; a component is the least-squares solution of
+// its equations, 0 without any.
 Params JointOffsetFromCouplings(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& couplings) {
   const int joint_index = RequireJoint(before, joint, "joint-offset");
   const JointSpec& j = before.joints[joint_index];
-  // (translation, rotation, component of r, sign): K(translation, rotation) = sign k_translation r_component
-  struct Term {
-    Dof translation, rotation;
-    int component;
-    double sign;
-  };
-  static const Term kTerms[] = {{Dof::kDx, Dof::kRy, 2, 1}, {Dof::kDy, Dof::kRx, 2, -1}, {Dof::kDx, Dof::kRz, 1, -1},
-                                {Dof::kDz, Dof::kRx, 1, 1}, {Dof::kDy, Dof::kRz, 0, 1},  {Dof::kDz, Dof::kRy, 0, -1}};
   double num[3] = {0, 0, 0}, den[3] = {0, 0, 0};
   for (const Effect& e : couplings) {
     if (e.name != "coupled-stiffness") continue;
     const JointDofLocation l = ParseJointDof(before, e.location, e.name);
     if (l.joint != joint_index) continue;
-    for (const Term& t : kTerms) {
+    for (const OffsetCouplingTerm& t : kOffsetCouplingTerms) {
       if (!((l.a == t.translation && l.b == t.rotation) || (l.a == t.rotation && l.b == t.translation))) continue;
       const double a = t.sign * j.stiffness[index(t.translation)];
       num[t.component] += a * e.parameters.at("k");
@@ -251,9 +254,23 @@ Params JointOffsetFromCouplings(const ModelSpec& before, const std::string& join
     }
   }
   Params p;
-  const char* names[3] = {"dx", "dy", "dz"};
-  for (int i = 0; i < 3; ++i) p[names[i]] = den[i] > 0 ? num[i] / den[i] : 0.0;
+  for (int i = 0; i < 3; ++i) p[kOffsetComponents[i]] = den[i] > 0 ? num[i] / den[i] : 0.0;
   return p;
+}
+
+// The couplings a joint offset makes on `before` to first order, one per term between free DoF (the
+// inverse of JointOffsetFromCouplings where each component has one equation).
+std::vector<Effect> JointOffsetAsCouplings(const ModelSpec& before, const Effect& offset) {
+  const JointSpec& j = before.joints[RequireJoint(before, offset.location, offset.name)];
+  std::vector<Effect> couplings;
+  for (const OffsetCouplingTerm& t : kOffsetCouplingTerms) {
+    if (j.imposed[index(t.translation)] || j.imposed[index(t.rotation)]) continue;
+    const double k = t.sign * j.stiffness[index(t.translation)] * offset.parameters.at(kOffsetComponents[t.component]);
+    couplings.push_back({"coupled-stiffness", j.name + "." + std::string(stagefit::name(t.translation)) + "-" + std::string(stagefit::name(t.rotation)),
+                         {{"k", k}},
+                         {}});
+  }
+  return couplings;
 }
 
 void ApplyCoupling(ModelSpec& spec, const Effect& e, const Getter& get) {
@@ -425,6 +442,7 @@ std::vector<EffectDefinition> MakeCatalogue() {
     };
     d.mimicked_together_by = {"coupled-stiffness"};
     d.from_mimics = JointOffsetFromCouplings;
+    d.to_mimics = JointOffsetAsCouplings;
     c.push_back(d);
   }
   {

@@ -229,7 +229,10 @@ TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {
   EXPECT_FALSE(StandsFor(offset, "payload"));
   EXPECT_FALSE(StandsFor(offset, "joint-offset"));
   for (const EffectDefinition& one : EffectCatalogue()) {
-    if (!one.from_mimics) EXPECT_FALSE(StandsFor(one, "coupled-stiffness")) << one.name;
+    if (!one.from_mimics) {
+      EXPECT_FALSE(StandsFor(one, "coupled-stiffness")) << one.name;
+    }
+    EXPECT_EQ(static_cast<bool>(one.to_mimics), static_cast<bool>(one.from_mimics)) << one.name;
   }
   // A second offset where the model holds one adds nothing; a second extra body adds its own mode.
   ModelSpec moved = DefaultModelSpec();
@@ -246,8 +249,9 @@ TEST(Effects, AJointOffsetStandsForCouplingsAtItsJoint) {
 // joint is stiffer by the couplings K(Dx,Ry) = kx dz, K(Dy,Rx) = -ky dz, K(Dx,Rz) = -kx dy,
 // K(Dz,Rx) = kz dy, K(Dy,Rz) = ky dx, K(Dz,Ry) = -kz dx, by k r^2 on the rotations and between them
 // (the damping alike). The joint-offset effect is that joint to the eigen-solver's rounding (the
-// modes agree to 1e-9 of their eigenvalues), and the joint-offset's from_mimics gives
-// back r from the couplings (the loop's merge starts there).
+// modes agree to 1e-9 of their eigenvalues); the joint-offset's from_mimics gives back r from the
+// couplings (the loop's merge starts there), and its to_mimics the couplings from r (the loop's
+// reduction to the couplings left starts there).
 TEST(Effects, AJointOffsetIsTheCouplingsOfItsStiffnessCentre) {
   const ModelSpec nominal = DefaultModelSpec();
   const EffectDefinition& offset = FindEffectDefinition("joint-offset");
@@ -309,6 +313,14 @@ TEST(Effects, AJointOffsetIsTheCouplingsOfItsStiffnessCentre) {
       EXPECT_NEAR(p.at("dz"), r.z(), 1e-12) << joint;
       EXPECT_NEAR(p.at("dy"), r.y(), 1e-12) << joint;
       EXPECT_NEAR(p.at("dx"), r.x(), 1e-12) << joint;
+      const std::vector<Effect> made = offset.to_mimics(nominal, Effect{"joint-offset", joint, {{"dx", r.x()}, {"dy", r.y()}, {"dz", r.z()}}, {}});
+      ASSERT_EQ(made.size(), couplings.size()) << joint;
+      for (size_t i = 0; i < made.size(); ++i) {
+        EXPECT_EQ(made[i].name, "coupled-stiffness");
+        EXPECT_EQ(made[i].location, couplings[i].location);
+        const double k_coupling = couplings[i].parameters.at("k");
+        EXPECT_NEAR(made[i].parameters.at("k"), k_coupling, 1e-12 * std::abs(k_coupling)) << couplings[i].location;
+      }
     }
   }
 }

@@ -271,6 +271,28 @@ std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given,
                                                const LoopOptions& options, model::ModelSpec* current,
                                                std::vector<LoopStep>* history);
 
+/// ReduceToTheMimicsLeft() tries the largest this many of what an effect and its mimics make together,
+/// each set with the ones before it.
+constexpr int kMimicsLeftTried = 2;
+/// A term of what an effect and its mimics make together below this share of the largest (on the scale
+/// of their ranges) has cancelled out and is not tried.
+constexpr double kMimicCancelled = 0.01;
+
+/// The reverse of MergeMimickingEffects(): an effect the loop added that mimics several others
+/// (model::EffectDefinition::to_mimics: a joint offset, the couplings of its joint's translations with
+/// its rotations), beside effects the loop added of those kinds at its joint, is put with them as what
+/// they make together, term by term (a coupling the offset makes plus the added one of its pair); the
+/// largest term alone, and then with the next, replaces them when it has fewer parameters and its
+/// error, refitted from there and from the model as given (RefitWithEffects), is within
+/// kRigidLimitTolerance of `history`'s last. Seed 82515 of eval_loop (a Dx-Ry coupling of the hexapod
+/// and a loss factor there): the first round took the hexapod's offset, 268 mm down, for the coupling,
+/// and the second added its Dy-Rx coupling against the other term the offset makes. Returns
+/// "<effect>, <mimic>, ... -> <effect>, ..." for the replacement taken (a "reduce" step is appended to
+/// `history`); empty when none was taken.
+std::vector<std::string> ReduceToTheMimicsLeft(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+                                               const LoopOptions& options, model::ModelSpec* current,
+                                               std::vector<LoopStep>* history);
+
 /// The loop's step when it ends at the noise floor with an added effect whose length or turn ran to the
 /// bound of its range (ParametersAtBounds(), checked against `current` without the effect): each such
 /// parameter is set to its nominal value (the catalogue's default at the location: no offset, no turn)

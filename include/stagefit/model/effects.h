@@ -96,6 +96,12 @@ struct EffectDefinition {
   /// mimicked_together_by.
   std::function<std::map<std::string, double>(const ModelSpec& before, const std::string& joint, const std::vector<Effect>& mimics)>
       from_mimics;
+  /// The effects of mimicked_together_by that make what this one makes on `before` (the model without
+  /// it), to first order, one for each term (a joint offset: the couplings of its joint's free
+  /// translations with its free rotations, K(Dx,Ry) = kx dz, ...): the inverse of from_mimics, where
+  /// the loop's step for this effect beside its own mimics starts (diagnose::ReduceToTheMimicsLeft).
+  /// Set with from_mimics.
+  std::function<std::vector<Effect>(const ModelSpec& before, const Effect& e)> to_mimics;
   /// A second one at a location that holds one already adds what the first one's parameters cannot (an
   /// extra body: a second local mode). Otherwise the two merge into one (two couplings of one pair
   /// are one coupling of their sum; two turns of a channel are one turn), and no second one is tried.
