@@ -868,6 +868,21 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       say("dropped " + key + ": error " + std::to_string(summary.history.back().error));
     }
   };
+  // An effect that mimics several beside its mimics at its joint: what they make together
+  // (ReduceToTheMimicsLeft). What it takes away is not added again.
+  auto reduce = [&] {
+    const std::vector<model::Effect> before = current.effects;
+    for (const std::string& change : ReduceToTheMimicsLeft(spec, comparison, options, &current, &summary.history)) {
+      say("reduced " + change + ": error " + std::to_string(summary.history.back().error));
+      for (const model::Effect& e : before) {
+        if (std::none_of(current.effects.begin(), current.effects.end(), [&](const model::Effect& f) { return Key(f) == Key(e); })) {
+          dropped.insert(Key(e));
+        }
+      }
+      drop_unneeded(current.effects.back());
+      summary.effects_added = EffectTexts(current.effects);
+    }
+  };
   // Up to `max_rounds` rounds of diagnosis from `current`, each adding one effect at most; the first
   // one even at the floor when `first_at_floor`.
   auto run_rounds = [&](int max_rounds, bool first_at_floor) {
@@ -945,6 +960,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       }
       drop_unneeded(best.effect);
       summary.effects_added = EffectTexts(current.effects);
+      // A coupling added beside the offset of its joint, or the offset beside its couplings, before the
+      // next round screens on them (seed 82516: the hexapod's offset taken for its Dx-Ry coupling, then
+      // its Dy-Rx coupling added against the offset's other term, 1.55x the floor).
+      reduce();
       // Still far above the floor: the round's next candidates fitted beside the effects from the model as
       // given, where the fitted model's bent stiffnesses cannot hold them (TryRunnersUpFromAsGiven).
       if (TimesFloor(summary.history.back().error, floor) > kBandStagesTimesFloor) {
@@ -969,11 +988,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       drop_unneeded(current.effects.back());
       summary.effects_added = EffectTexts(current.effects);
     }
-    for (const std::string& change : ReduceToTheMimicsLeft(spec, comparison, options, &current, &summary.history)) {
-      say("reduced " + change + ": error " + std::to_string(summary.history.back().error));
-      drop_unneeded(current.effects.back());
-      summary.effects_added = EffectTexts(current.effects);
-    }
+    reduce();
   };
   auto finish = [&] {
     merge();

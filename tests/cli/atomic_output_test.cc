@@ -24,17 +24,11 @@ namespace stagefit {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::ReadBytes;
 using testing::RunStagefit;
+using testing::Substitute;
 using testing::TempDir;
-
-std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-void WriteBytes(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
-}
+using testing::WriteBytes;
 
 // Every file under `dir` with its content.
 std::map<std::string, std::string> Snapshot(const fs::path& dir) {
@@ -43,11 +37,6 @@ std::map<std::string, std::string> Snapshot(const fs::path& dir) {
     if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = ReadBytes(e.path());
   }
   return files;
-}
-
-std::string Substitute(std::string command, const fs::path& dir) {
-  for (std::size_t at; (at = command.find("{dir}")) != std::string::npos;) command.replace(at, 5, dir.string());
-  return command;
 }
 
 void Run(const std::string& arguments) {

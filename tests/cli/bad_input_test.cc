@@ -30,25 +30,16 @@ namespace {
 
 namespace fs = std::filesystem;
 using measurement::MatVariable;
+using testing::ReadBytes;
 using testing::RunStagefit;
+using testing::Substitute;
 using testing::TempDir;
+using testing::WriteBytes;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ---- files as bytes and text ----
-
-std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + path.string());
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-void WriteBytes(const fs::path& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << bytes;
-  if (!out) throw std::runtime_error("cannot write " + path.string());
-}
 
 // `text` with the first `from` replaced by `to`; a missing `from` is a broken test, not a pass.
 std::string Edit(std::string text, const std::string& from, const std::string& to) {
@@ -289,11 +280,6 @@ struct BadInput {
 };
 
 void PrintTo(const BadInput& c, std::ostream* os) { *os << c.reader << " " << c.name; }
-
-std::string Substitute(std::string command, const fs::path& dir) {
-  for (std::size_t at; (at = command.find("{dir}")) != std::string::npos;) command.replace(at, 5, dir.string());
-  return command;
-}
 
 // Commands per reader, each with an output that must not appear when the input is bad.
 const char kModelCommand[] = "model --model {dir}/bad.toml --report {dir}/out.json";

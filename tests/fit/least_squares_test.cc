@@ -20,7 +20,7 @@
 namespace stagefit::fit {
 namespace {
 
-// y(t) = A exp(-t / tau) sampled at t_i, with additive noise of standard deviation kNoise.
+// y(t) = A exp(-t / tau) sampled at t_i, with additive noise of standard deviation kDecayNoise.
 class ExponentialDecay final : public LeastSquaresProblem {
  public:
   ExponentialDecay(Eigen::VectorXd t, Eigen::VectorXd y) : t_(std::move(t)), y_(std::move(y)) {}
@@ -236,12 +236,12 @@ TEST(SolveWithProbes, BoundResetsRunSideBySideOnClonesWithTheResultOfOneThread) 
 
 constexpr double kTrueA = 2.0;
 constexpr double kTrueTau = 0.3;   // s
-constexpr double kNoise = 0.01;
+constexpr double kDecayNoise = 0.01;
 constexpr int kSamples = 60;
 
 ExponentialDecay MakeDecay(std::uint64_t seed) {
   std::mt19937_64 generator(seed);
-  std::normal_distribution<double> normal(0.0, kNoise);
+  std::normal_distribution<double> normal(0.0, kDecayNoise);
   Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(kSamples, 0.0, 1.5);
   Eigen::VectorXd y(kSamples);
   for (int i = 0; i < kSamples; ++i) y[i] = kTrueA * std::exp(-t[i] / kTrueTau) + normal(generator);
@@ -263,8 +263,8 @@ TEST(Solve, ExponentialDecayRecoversTruthWithinThreeStd) {
   EXPECT_NEAR(summary.parameters[1].value, kTrueTau, 3.0 * summary.parameters[1].std_dev);
   // sigma^2 estimates the noise variance: with 58 degrees of freedom its relative standard deviation
   // is sqrt(2 / 58) = 0.19, so a factor 1.8 either way is a > 3-sigma event.
-  EXPECT_GT(summary.residual_variance, kNoise * kNoise / 1.8);
-  EXPECT_LT(summary.residual_variance, kNoise * kNoise * 1.8);
+  EXPECT_GT(summary.residual_variance, kDecayNoise * kDecayNoise / 1.8);
+  EXPECT_LT(summary.residual_variance, kDecayNoise * kDecayNoise * 1.8);
   EXPECT_TRUE(summary.warnings.empty()) << summary.FullReport();
   EXPECT_NE(summary.BriefReport().find("converged"), std::string::npos);
   EXPECT_NE(summary.FullReport().find("tau"), std::string::npos);

@@ -12,12 +12,12 @@
 
 #include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 
 namespace stagefit::measurement {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kPi = 3.14159265358979323846;
 
 // A continuous-time linear system x' = A x + B f, y = C x + D f (one force input).
 struct LinearSystem {

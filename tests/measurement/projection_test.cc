@@ -8,6 +8,7 @@
 #include <string>
 
 #include "stagefit/common/error.h"
+#include "stagefit/common/units.h"
 
 namespace stagefit::measurement {
 namespace {
@@ -15,7 +16,6 @@ namespace {
 using Complex = std::complex<double>;
 
 constexpr double d = 0.14;            // SPEC §2 lever arm, m
-constexpr double kPi = 3.14159265358979323846;
 const Eigen::Vector3d kOrigin(0.0, 0.0, -0.03);  // {X} origin in W (SPEC §2)
 
 // J_a and J_F are exact sums of products of d with 0 and +-1; the only rounding is in forming
