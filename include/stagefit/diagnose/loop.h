@@ -284,9 +284,10 @@ constexpr double kMimicCancelled = 0.01;
 /// they make together, term by term (a coupling the offset makes plus the added one of its pair); the
 /// largest term alone, and then with the next, replaces them when it has fewer parameters and its
 /// error, refitted from there and from the model as given (RefitWithEffects), is within
-/// kRigidLimitTolerance of `history`'s last. Seed 82515 of eval_loop (a Dx-Ry coupling of the hexapod
-/// and a loss factor there): the first round took the hexapod's offset, 268 mm down, for the coupling,
-/// and the second added its Dy-Rx coupling against the other term the offset makes. Returns
+/// kRigidLimitTolerance of `history`'s last. Seed 82516 of eval_loop (a payload on the hexapod and a
+/// Dx-Ry coupling there): round 1 took the hexapod's offset, 157 mm up, for the coupling, and round 3
+/// added its Dy-Rx coupling against the other term the offset makes (1.55x the floor); reduced, the
+/// one Dx-Ry coupling, 1.03x. The loop calls it after each round's add and with the merge. Returns
 /// "<effect>, <mimic>, ... -> <effect>, ..." for the replacement taken (a "reduce" step is appended to
 /// `history`); empty when none was taken.
 std::vector<std::string> ReduceToTheMimicsLeft(const model::ModelSpec& as_given, const compare::Comparison& comparison,
