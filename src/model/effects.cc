@@ -266,9 +266,8 @@ std::vector<Effect> JointOffsetAsCouplings(const ModelSpec& before, const Effect
   for (const OffsetCouplingTerm& t : kOffsetCouplingTerms) {
     if (j.imposed[index(t.translation)] || j.imposed[index(t.rotation)]) continue;
     const double k = t.sign * j.stiffness[index(t.translation)] * offset.parameters.at(kOffsetComponents[t.component]);
-    couplings.push_back({"coupled-stiffness", j.name + "." + std::string(stagefit::name(t.translation)) + "-" + std::string(stagefit::name(t.rotation)),
-                         {{"k", k}},
-                         {}});
+    const std::string pair = std::string(stagefit::name(t.translation)) + "-" + std::string(stagefit::name(t.rotation));
+    couplings.push_back({"coupled-stiffness", j.name + "." + pair, {{"k", k}}, {}});
   }
   return couplings;
 }

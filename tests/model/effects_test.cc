@@ -313,7 +313,8 @@ TEST(Effects, AJointOffsetIsTheCouplingsOfItsStiffnessCentre) {
       EXPECT_NEAR(p.at("dz"), r.z(), 1e-12) << joint;
       EXPECT_NEAR(p.at("dy"), r.y(), 1e-12) << joint;
       EXPECT_NEAR(p.at("dx"), r.x(), 1e-12) << joint;
-      const std::vector<Effect> made = offset.to_mimics(nominal, Effect{"joint-offset", joint, {{"dx", r.x()}, {"dy", r.y()}, {"dz", r.z()}}, {}});
+      const Effect moved_by_r{"joint-offset", joint, {{"dx", r.x()}, {"dy", r.y()}, {"dz", r.z()}}, {}};
+      const std::vector<Effect> made = offset.to_mimics(nominal, moved_by_r);
       ASSERT_EQ(made.size(), couplings.size()) << joint;
       for (size_t i = 0; i < made.size(); ++i) {
         EXPECT_EQ(made[i].name, "coupled-stiffness");
