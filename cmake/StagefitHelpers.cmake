@@ -45,8 +45,8 @@ function(stagefit_test_definitions target)
     STAGEFIT_BINARY="$<TARGET_FILE:stagefit>")
 endfunction()
 
-# stagefit_use_unity_build(target) (STAGEFIT_UNITY_BUILD): target's sources compiled in batches of 8
-# per translation unit, so that the Eigen and Ceres templates they share are instantiated and optimised
+# stagefit_use_unity_build(target [BATCH n]) (STAGEFIT_UNITY_BUILD): target's sources compiled in
+# batches of n (default 8) per translation unit, so that the Eigen and Ceres templates they share are instantiated and optimised
 # once per batch instead of once per file (about 40 % less compile time for src/). Names in a file's
 # anonymous namespace are then visible to the other files of its batch: two helpers of the same name
 # and signature fail to compile, so each file's helpers keep their own names.
@@ -54,8 +54,12 @@ endfunction()
 # inlines less of them (a loop 5 % slower).
 set(STAGEFIT_HOT_SOURCES frf_evaluator.cc stiffness_update.cc residuals.cc least_squares.cc effect_problem.cc)
 function(stagefit_use_unity_build target)
+  cmake_parse_arguments(ARG "" "BATCH" "" ${ARGN})
+  if(NOT DEFINED ARG_BATCH)
+    set(ARG_BATCH 8)
+  endif()
   if(STAGEFIT_UNITY_BUILD)
-    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${ARG_BATCH})
     get_target_property(sources ${target} SOURCES)
     foreach(source ${sources})
       get_filename_component(name ${source} NAME)
@@ -83,11 +87,12 @@ endfunction()
 # registered with CTest test by test (each test still runs in its own process). COST (CTest's property,
 # default 0) orders a fresh build folder's first run, which has no timings yet: higher first. The
 # programs whose tests run diagnoses and loops (10-110 s each) set it, so that a parallel run does not
-# end with one of them alone. The files are compiled in batches (STAGEFIT_UNITY_BUILD), as the
-# libraries' are: GoogleTest's and Eigen's templates are instantiated once per batch, and one program per
-# layer is linked instead of one per file (together about 40 % of a fresh build's time went to the test
-# programs). A test file's helpers in its anonymous namespace are then seen by the other files of its
-# batch, so each file's helpers keep their own names, as in src/.
+# end with one of them alone. The files are compiled in batches of four (stagefit_use_unity_build), as
+# the libraries' are: GoogleTest's and Eigen's templates are instantiated once per batch, and one
+# program per layer is linked instead of one per file (a fresh build with the tests: 781 s of compiler
+# and linker time against 1059 s with a program per file). A test file's helpers in its anonymous
+# namespace are then seen by the other files of its batch, so each file's helpers keep their own names,
+# as in src/.
 function(stagefit_test name)
   cmake_parse_arguments(ARG "" "COST" "SOURCES;DEPS" ${ARGN})
   if(NOT DEFINED ARG_COST)
@@ -97,9 +102,7 @@ function(stagefit_test name)
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   stagefit_test_definitions(${name})
   stagefit_use_pch(${name} TESTS)
-  if(STAGEFIT_UNITY_BUILD)
-    set_target_properties(${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 4)
-  endif()
+  stagefit_use_unity_build(${name} BATCH 4)
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS unit COST ${ARG_COST})
 endfunction()
 
@@ -125,8 +128,5 @@ endfunction()
 function(stagefit_layer_tests layer)
   cmake_parse_arguments(ARG "" "COST" "DEPS" ${ARGN})
   file(GLOB tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
-  if(NOT DEFINED ARG_COST)
-    set(ARG_COST 0)
-  endif()
   stagefit_test(${layer}_tests SOURCES ${tests} COST ${ARG_COST} DEPS stagefit::${layer} ${ARG_DEPS})
 endfunction()
