@@ -226,8 +226,15 @@ constexpr int kRunnersUpTried = 2;
 /// 82314 of eval_loop (a 6.2 kg payload on the hexapod and a loss factor of rz) added the payload at
 /// 3.54x the floor, where the loss factor, third in that round, fitted from the model's state ended at
 /// 4.9x, and the loop added three other effects (1.22x, 0.025 off the noise-free truth, 592 s); fitted
-/// with the payload from the model as given, the loss factor reaches 1.02x. Returns the effect added, or
-/// nullopt with nothing changed.
+/// with the payload from the model as given, the loss factor reaches 1.02x.
+/// A pair that ends above the round threshold but within kBandStagesTimesFloor is fitted again with the
+/// leader from each of its other starts of its own kind (model::EffectDefinition::starts_in_place), the
+/// lowest kept: the leader's own fit can leave it where the pair has no slope to the data (82536 of
+/// eval_loop: a 2.5 kg body at 213 Hz on the hexapod, 150 Hz band, added as 4.2 kg on a joint rigid in
+/// translation; the servo of ry.Ry beside it 1.11x, beside the body started with its modes above the
+/// band 1.003x). The pair taken is refitted on all frequencies, as a round's add is (FitFromAsGiven
+/// finishes there with the diagnosis' few iterations), and a "refit" step follows the add. Returns the
+/// effect added, or nullopt with nothing changed.
 std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                                      const LoopOptions& options, const DiagnoseSummary& diagnosis,
                                                      const std::set<std::string>& dropped, model::ModelSpec* current,

@@ -117,9 +117,12 @@ struct EffectDefinition {
   /// as the payload of its mass at its height: with a stiff joint it still has its own rotary inertia,
   /// which a payload has not); or the same kind with the parameters a fit can leave in another basin
   /// set back (a payload of its mass at the host's centre of mass: a 7 kg payload 115 mm above the
-  /// hexapod, fitted from 0.7 kg, stopped 33-40 mm off-axis and 13 mm below). The relocation step
-  /// refits the model with each in the effect's place, beside its diagnosis, which starts the other
-  /// kinds from their defaults on the model without the effect. Unset: the diagnosis only.
+  /// hexapod, fitted from 0.7 kg, stopped 33-40 mm off-axis and 13 mm below; an extra body with its
+  /// modes at twice the band's top, where a fit that made its joint rigid in translation has no slope
+  /// left). The relocation step refits the model with each in the effect's place, beside its diagnosis,
+  /// which starts the other kinds from their defaults on the model without the effect; the step that
+  /// fits a round's next candidates beside its leader (diagnose::TryRunnersUpFromAsGiven) refits a pair
+  /// short of the floor with the leader from those of its own kind. Unset: the diagnosis only.
   std::function<std::vector<Effect>(const Effect&, double band_high_hz)> starts_in_place;
 };
 
