@@ -124,9 +124,13 @@ class TwoBasins final : public LeastSquaresProblem {
     if (!costs_probes_) return nullptr;
     return std::make_unique<Costs>(this, p[0]);
   }
-  static Eigen::Vector2d Residuals(double p) {
+  // A VectorXd, as Evaluate() hands it out: assigning a fixed-size Vector2d to one made GCC 12's
+  // array-bounds check warn of an AVX-512 load past its 16 bytes (a path Eigen never takes for 2).
+  static Eigen::VectorXd Residuals(double p) {
     const double x = std::log(p), L = std::log(8.0);
-    return {x * (x - L), kEps * (x - L)};
+    Eigen::VectorXd r(2);
+    r << x * (x - L), kEps * (x - L);
+    return r;
   }
   mutable int evaluations = 0;
   mutable int costed = 0;
