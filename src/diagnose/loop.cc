@@ -627,6 +627,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
     }
   }
   std::vector<std::optional<EffectsFit>> fits(tried.size());
+  std::vector<char> leader_restarted(tried.size(), 0);  // not vector<bool>: written from several threads
   std::vector<std::function<void()>> jobs;
   for (size_t i = 0; i < tried.size(); ++i) {
     jobs.push_back([&, i] {
@@ -645,6 +646,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
           if (const double e = comparison.Error(fit->spec); e < error) {
             error = e;
             fits[i] = std::move(fit);
+            leader_restarted[i] = 1;
           }
         }
       }
@@ -659,8 +661,9 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
     const model::Effect& effect = tried[i]->effect;
     const double delta_bic = DeltaBic(e, before, FreeParameters(effect), n);
     if (options.progress) {
-      char line[160];
-      std::snprintf(line, sizeof line, "  with %s: error %.5f (%.2f x the floor)", Key(effect).c_str(), e, TimesFloor(e, floor));
+      char line[200];
+      std::snprintf(line, sizeof line, "  with %s%s: error %.5f (%.2f x the floor)", Key(effect).c_str(),
+                    leader_restarted[i] ? (", " + leader_key + " started again in its place").c_str() : "", e, TimesFloor(e, floor));
       options.progress(line);
     }
     if (e < (1 - options.diagnose.min_relative_improvement) * before && delta_bic < 0 &&
