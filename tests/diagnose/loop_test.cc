@@ -766,6 +766,16 @@ TEST(DropUnneededEffects, KeepsAnEffectTheModelNeedsToBeAtTheFloor) {
 
 // The fit that puts a relocation test's effects where the loop's rounds left them: the effects and the
 // stiffnesses, as the loop refits them.
+// A diagnosis' candidate of the effect `text` (on the default model) with `delta_bic`, for the steps
+// that take a round's candidates.
+Candidate CandidateOf(const std::string& text, double delta_bic) {
+  Candidate k;
+  k.effect = model::ParseEffect(text, model::DefaultModelSpec());
+  k.with = k.effect.ToString();
+  k.delta_bic = delta_bic;
+  return k;
+}
+
 EffectFitOptions RoundsFitOptions() {
   EffectFitOptions eo;
   eo.max_iterations = 100;
@@ -1048,17 +1058,10 @@ TEST(TryRunnersUpFromAsGiven, FitsTheLossFactorTheBentStiffnessesHold) {
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"payload@hexapod", "structural-damping@rz"}));
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
-  const auto candidate = [&](const std::string& text, double delta_bic) {
-    Candidate k;
-    k.effect = model::ParseEffect(text, nominal);
-    k.with = k.effect.ToString();
-    k.delta_bic = delta_bic;
-    return k;
-  };
   DiagnoseSummary diagnosis;
-  diagnosis.candidates = {candidate("payload@hexapod:mass=6.1701,x=7.74e-06,y=-1.09e-06,z=0.28017", -42896),
-                          candidate("extra-body@hexapod:mass=6.19,k=9.9e13,kr=3.9e9,z=0.282", -42790),
-                          candidate("structural-damping@rz:eta=0.078", -33047)};
+  diagnosis.candidates = {CandidateOf("payload@hexapod:mass=6.1701,x=7.74e-06,y=-1.09e-06,z=0.28017", -42896),
+                          CandidateOf("extra-body@hexapod:mass=6.19,k=9.9e13,kr=3.9e9,z=0.282", -42790),
+                          CandidateOf("structural-damping@rz:eta=0.078", -33047)};
   // The loop's state after the round: the payload as the diagnosis fitted it (the refit kept it), beside
   // stiffnesses fitted for it.
   model::ModelSpec with_payload =
@@ -1117,15 +1120,8 @@ TEST(TryRunnersUpFromAsGiven, StartsTheLeaderAgainWhereItsFitLeftNoSlope) {
   const auto comparison = compare::Comparison::Create(nominal, c.measurement);
   const double floor = comparison.CalcNoiseFloor().floor;
   DiagnoseSummary diagnosis;
-  const auto candidate = [&](const std::string& text) {
-    Candidate k;
-    k.effect = model::ParseEffect(text, nominal);
-    k.with = k.effect.ToString();
-    k.delta_bic = -1000;
-    return k;
-  };
-  diagnosis.candidates = {candidate("extra-body@hexapod:mass=4.2432,k=8.8476e13,kr=13177,z=0.10964"),
-                          candidate("servo-stiffness@ry.Ry:k=5e7,zeta=0.1")};
+  diagnosis.candidates = {CandidateOf("extra-body@hexapod:mass=4.2432,k=8.8476e13,kr=13177,z=0.10964", -1000),
+                          CandidateOf("servo-stiffness@ry.Ry:k=5e7,zeta=0.1", -1000)};
   model::ModelSpec current =
       FitEffects(nominal, comparison, {diagnosis.candidates[0].effect}, LoopOptions().diagnose.params, RoundsFitOptions()).spec;
   model::SetEffects(current, {diagnosis.candidates[0].effect});
