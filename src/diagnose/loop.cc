@@ -40,6 +40,12 @@ double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
 
+/// The top of the compared band, Hz: where an effect's other starts in its place put their modes
+/// (model::EffectDefinition::starts_in_place).
+double BandHighHz(const compare::Comparison& comparison) {
+  return comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
+}
+
 /// The change of the Bayesian information criterion from a model at `error_before` to one at `error_after`
 /// with `k` more parameters, on `n` residuals (< 0 supports the second).
 double DeltaBic(double error_after, double error_before, int k, double n) {
@@ -544,8 +550,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     // its mass at the centre, 1.05x. 82343: a payload taken for a body whose joint is far stiffer than
     // the band, 2.43x; as the body's rigid limit, 1.01x.
     if (definition.starts_in_place) {
-      const double band_high_hz = comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
-      for (const model::Effect& start : definition.starts_in_place(effect, band_high_hz)) {
+      for (const model::Effect& start : definition.starts_in_place(effect, BandHighHz(comparison))) {
         if (start == effect) continue;
         std::vector<model::Effect> in_place = others;
         in_place.push_back(start);
@@ -619,9 +624,8 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
   std::vector<model::Effect> leader_starts;
   if (leader != current->effects.end()) {
     const model::EffectDefinition& definition = model::FindEffectDefinition(leader->name);
-    const double band_high_hz = comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
     if (definition.starts_in_place) {
-      for (const model::Effect& start : definition.starts_in_place(*leader, band_high_hz)) {
+      for (const model::Effect& start : definition.starts_in_place(*leader, BandHighHz(comparison))) {
         if (Key(start) == leader_key && !(start == *leader)) leader_starts.push_back(start);
       }
     }

@@ -173,7 +173,8 @@ std::vector<double> ExtraBodyLocalModesHz(const Effect& e) {
 }
 
 // A body of `mass` at height `z` on `location` with its translation and rocking modes at twice the
-// band's top: a start of the relocation step from which a fit can bring the modes down to the data.
+// band's top: a start in its place (starts_in_place) from which a fit can bring the modes down to the
+// data.
 Effect ExtraBodyAboveTheBand(const std::string& location, double mass, double z, double band_high_hz) {
   const double r = kExtraBodyRadiusOfGyration, w = 2 * M_PI * 2 * band_high_hz;
   return Effect{"extra-body", location, Params{{"mass", mass}, {"k", mass * w * w}, {"kr", mass * r * r * w * w}, {"z", z}}};
