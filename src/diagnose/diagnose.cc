@@ -106,16 +106,12 @@ constexpr double kPolishTrustRegionRadius = 1.0;
 /// correct model's error lies within 1.05x of the floor (its standard deviation is about 1 % of it).
 constexpr double kSecondStartSkipTimesFloor = 1.05;
 
-/// `body` (an extra-body effect) with the joint stiffnesses that put its rocking modes,
-/// sqrt(kr / (mass r^2)) with r = kExtraBodyRadiusOfGyration, at `rocking_hz`, and with
-/// `translation_hz` its translation modes, sqrt(k / mass), too; its mass as it is.
-void SetExtraBodyRockingHz(model::Effect* body, double rocking_hz) {
-  const double inertia = body->parameters.at("mass") * std::pow(model::kExtraBodyRadiusOfGyration, 2);
-  body->parameters["kr"] = inertia * std::pow(2 * M_PI * rocking_hz, 2);
-}
+/// `body` (an extra-body effect) with the joint stiffnesses that put its translation modes,
+/// sqrt(k / mass), at `translation_hz` and its rocking modes at `rocking_hz`
+/// (model::SetExtraBodyRockingHz); its mass as it is.
 void SetExtraBodyModesHz(model::Effect* body, double translation_hz, double rocking_hz) {
   body->parameters["k"] = body->parameters.at("mass") * std::pow(2 * M_PI * translation_hz, 2);
-  SetExtraBodyRockingHz(body, rocking_hz);
+  model::SetExtraBodyRockingHz(body, rocking_hz);
 }
 
 /// The rigid-body consistency of the measurement's raw channels (summary fields), when it has them.
@@ -354,17 +350,6 @@ double FloorRatio(const compare::Comparison& comparison, const model::ModelSpec&
   return base.known && own.known && base.floor > 0 && own.floor > 0 ? own.floor / base.floor : 1.0;
 }
 
-/// The centre (geometric mean of its edges) of the band where `model`'s error against `comparison` is
-/// largest; nullopt without bands. A missing lightly damped local mode leaves its error around its
-/// frequency.
-std::optional<double> WorstBandCentreHz(const compare::Comparison& comparison, const model::ModelSpec& model) {
-  std::vector<compare::BandError> bands;
-  std::vector<compare::ElementError> elements;
-  SortWorst(comparison.Evaluate(model), 1, 0, &bands, &elements);
-  if (bands.empty() || !(bands[0].band.low_hz > 0)) return std::nullopt;
-  return std::sqrt(bands[0].band.low_hz * bands[0].band.high_hz);
-}
-
 void SortByBic(std::vector<Candidate>* candidates) {
   std::sort(candidates->begin(), candidates->end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
 }
@@ -440,6 +425,14 @@ std::optional<std::vector<int>> ThinnedFrequencies(int count, int max_frequencie
 }
 
 }  // namespace
+
+std::optional<double> WorstBandCentreHz(const compare::Comparison& comparison, const model::ModelSpec& model) {
+  std::vector<compare::BandError> bands;
+  std::vector<compare::ElementError> elements;
+  SortWorst(comparison.Evaluate(model), 1, 0, &bands, &elements);
+  if (bands.empty() || !(bands[0].band.low_hz > 0)) return std::nullopt;
+  return std::sqrt(bands[0].band.low_hz * bands[0].band.high_hz);
+}
 
 std::optional<compare::Comparison> ThinnedComparison(const compare::Comparison& comparison, int max_frequencies) {
   const auto kept = ThinnedFrequencies(comparison.num_frequencies(), max_frequencies);
@@ -1050,7 +1043,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         }
         auto add_rocking_start = [&](double rocking_hz) {
           Try rocking = leaders[i];
-          SetExtraBodyRockingHz(&rocking.effect, rocking_hz);
+          model::SetExtraBodyRockingHz(&rocking.effect, rocking_hz);
           leaders.push_back(rocking);
         };
         if (hz) add_rocking_start(*hz);
@@ -1371,7 +1364,7 @@ std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const
   const double own_hz = model::FindEffectDefinition(e.name).local_modes_hz(e)[1];
   const std::optional<double> best = ScanBandHz(comparison, [&](double hz) {
     Candidate c = candidate;
-    SetExtraBodyRockingHz(&c.effect, hz);
+    model::SetExtraBodyRockingHz(&c.effect, hz);
     return ApplyCandidate(summary, c);
   });
   if (!best || std::abs(*best / own_hz - 1) <= 2 * kModeScanStep) return std::nullopt;

@@ -40,10 +40,17 @@ double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
 
-/// The top of the compared band, Hz: where an effect's other starts in its place put their modes
-/// (model::EffectDefinition::starts_in_place).
-double BandHighHz(const compare::Comparison& comparison) {
-  return comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
+/// The compared band as an effect's other starts in its place see it
+/// (model::EffectDefinition::starts_in_place): its top, and the centre of its worst part with `model`.
+model::PlaceBand PlaceBandOf(const compare::Comparison& comparison, const model::ModelSpec& model) {
+  model::PlaceBand band;
+  band.high_hz = comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
+  try {
+    band.worst_centre_hz = WorstBandCentreHz(comparison, model);
+  } catch (const std::exception&) {
+    // A model that cannot be evaluated: its worst band is not known.
+  }
+  return band;
 }
 
 /// The change of the Bayesian information criterion from a model at `error_before` to one at `error_after`
@@ -550,7 +557,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     // its mass at the centre, 1.05x. 82343: a payload taken for a body whose joint is far stiffer than
     // the band, 2.43x; as the body's rigid limit, 1.01x.
     if (definition.starts_in_place) {
-      for (const model::Effect& start : definition.starts_in_place(effect, BandHighHz(comparison))) {
+      for (const model::Effect& start : definition.starts_in_place(effect, PlaceBandOf(comparison, *current))) {
         if (start == effect) continue;
         std::vector<model::Effect> in_place = others;
         in_place.push_back(start);
@@ -625,7 +632,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
   if (leader != current->effects.end()) {
     const model::EffectDefinition& definition = model::FindEffectDefinition(leader->name);
     if (definition.starts_in_place) {
-      for (const model::Effect& start : definition.starts_in_place(*leader, BandHighHz(comparison))) {
+      for (const model::Effect& start : definition.starts_in_place(*leader, PlaceBandOf(comparison, *current))) {
         if (Key(start) == leader_key && !(start == *leader)) leader_starts.push_back(start);
       }
     }

@@ -183,31 +183,38 @@ TEST(Effects, AnExtraBodysLocalModesAreItsModesOnAStillHost) {
 
 // The other starts of an effect in its place (the loop's relocation step refits each). A payload's: the
 // extra body it may stand for, of its mass at its height with both local modes at twice the band's top,
-// and the payload of its mass at the host's centre of mass. An extra body's: its rigid limit, and itself
-// with both local modes at twice the band's top.
+// and the payload of its mass at the host's centre of mass. An extra body's: its rigid limit, itself
+// with both local modes at twice the band's top, and itself with its rocking modes at the centre of the
+// worst band when that is known.
 TEST(Effects, StartsInPlaceAreABodyAboveTheBandAMassAtTheCentreAndARigidLimit) {
   const ModelSpec base = DefaultModelSpec();
   const Effect payload = ParseEffect("payload@hexapod:mass=5.9,x=-0.033,y=0.04,z=-0.013", base);
   const auto& definition = FindEffectDefinition("payload");
   ASSERT_TRUE(definition.starts_in_place);
-  const std::vector<Effect> starts = definition.starts_in_place(payload, 150.0);
+  const std::vector<Effect> starts = definition.starts_in_place(payload, PlaceBand{150.0, 120.0});
   ASSERT_EQ(starts.size(), 2u);
   EXPECT_EQ(starts[0].name + "@" + starts[0].location, "extra-body@hexapod");
   EXPECT_EQ(starts[0].parameters.at("mass"), 5.9);
   EXPECT_EQ(starts[0].parameters.at("z"), -0.013);
   for (double hz : FindEffectDefinition("extra-body").local_modes_hz(starts[0])) EXPECT_NEAR(hz, 300.0, 1e-9);
   EXPECT_EQ(starts[1].ToString(), "payload@hexapod:mass=5.9000000000000004,x=0,y=0,z=0");
-  // An extra body's starts: its rigid limit, and the same body with its modes above the band.
+  // An extra body's starts: its rigid limit, the same body with its modes above the band, and with its
+  // rocking modes at the worst band's centre.
   const Effect body = ParseEffect("extra-body@hexapod:mass=10,k=1e14,kr=1e3,z=0.14", base);
   const auto& body_definition = FindEffectDefinition("extra-body");
   ASSERT_TRUE(body_definition.starts_in_place);
-  const std::vector<Effect> body_starts = body_definition.starts_in_place(body, 600.0);
-  ASSERT_EQ(body_starts.size(), 2u);
+  EXPECT_EQ(body_definition.starts_in_place(body, PlaceBand{600.0, std::nullopt}).size(), 2u);
+  const std::vector<Effect> body_starts = body_definition.starts_in_place(body, PlaceBand{600.0, 315.0});
+  ASSERT_EQ(body_starts.size(), 3u);
   EXPECT_EQ(body_starts[0], body_definition.rigid_limit(body));
   EXPECT_EQ(body_starts[1].name + "@" + body_starts[1].location, "extra-body@hexapod");
   EXPECT_EQ(body_starts[1].parameters.at("mass"), 10.0);
   EXPECT_EQ(body_starts[1].parameters.at("z"), 0.14);
   for (double hz : body_definition.local_modes_hz(body_starts[1])) EXPECT_NEAR(hz, 1200.0, 1e-9);
+  Effect rocking = body_starts[2];
+  EXPECT_NEAR(body_definition.local_modes_hz(rocking)[1], 315.0, 1e-9);
+  rocking.parameters["kr"] = body.parameters.at("kr");
+  EXPECT_EQ(rocking, body);  // the rest as fitted
 }
 
 // Effects are located at the parts of the description, not at those another effect added: with an extra

@@ -195,6 +195,11 @@ std::optional<Eigen::Vector3d> CalcChannelTurn(const measurement::ChannelDirecti
 void SortWorst(const compare::ComparisonResult& result, size_t max_bands, size_t max_elements,
                std::vector<compare::BandError>* bands, std::vector<compare::ElementError>* elements);
 
+/// The centre (geometric mean of its edges) of the band where `model`'s error against `comparison` is
+/// largest; nullopt without bands. A missing lightly damped local mode leaves its error around its
+/// frequency.
+std::optional<double> WorstBandCentreHz(const compare::Comparison& comparison, const model::ModelSpec& model);
+
 /// The error of a model on one raw channel of a measurement (an accelerometer or an impact): the median
 /// over the channel's used elements in raw space (its row or column of the FRF matrix) of their errors
 /// (compare::ElementError::error, sqrt(sum w^2 |e|^2 / sum w^2) over the element's points). A part the

@@ -16,6 +16,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,17 @@ inline constexpr double kMaxCorrectionTurn = 0.6;
 inline constexpr double kExtraBodyRadiusOfGyration = 0.05;
 
 struct Effect;
+
+/// The band an effect's other starts in its place are made for (EffectDefinition::starts_in_place).
+struct PlaceBand {
+  double high_hz = 0;                     ///< the top of the compared band
+  std::optional<double> worst_centre_hz;  ///< the centre of the band where the model's error is largest, if known
+};
+
+/// `body` (an extra-body effect) with the rotational stiffness kr that puts its rocking modes,
+/// sqrt(kr / (mass r^2)) with r = kExtraBodyRadiusOfGyration, at `rocking_hz`; its other parameters
+/// as they are.
+void SetExtraBodyRockingHz(Effect* body, double rocking_hz);
 
 /// One entry of the catalogue: what the effect is, where it applies, its parameters, and everything
 /// that depends on which effect it is (defaults, the edit, search ranges, the words for a user). The
@@ -111,19 +123,20 @@ struct EffectDefinition {
   /// body, whose local mode just above the band reads in the band as more mass than a payload's, with a
   /// payload taken for it in the round). Empty when none.
   std::vector<std::string> also_sought_as;
-  /// Other starts for this effect in its own place, from its fitted parameters, for a band whose top is
-  /// `band_high_hz`: kinds of also_sought_as (a payload as an extra body of its mass at its height, its
+  /// Other starts for this effect in its own place, from its fitted parameters, for the compared
+  /// `band`: kinds of also_sought_as (a payload as an extra body of its mass at its height, its
   /// joint stiff enough to put its local modes at twice the band's top); the rigid limit (an extra body
   /// as the payload of its mass at its height: with a stiff joint it still has its own rotary inertia,
   /// which a payload has not); or the same kind with the parameters a fit can leave in another basin
   /// set back (a payload of its mass at the host's centre of mass: a 7 kg payload 115 mm above the
   /// hexapod, fitted from 0.7 kg, stopped 33-40 mm off-axis and 13 mm below; an extra body with its
   /// modes at twice the band's top, where a fit that made its joint rigid in translation has no slope
-  /// left). The relocation step refits the model with each in the effect's place, beside its diagnosis,
+  /// left, and with its rocking modes at the centre of the band where the model's error is largest,
+  /// where a fit that made its joint rigid in rocking has none). The relocation step refits the model with each in the effect's place, beside its diagnosis,
   /// which starts the other kinds from their defaults on the model without the effect; the step that
   /// fits a round's next candidates beside its leader (diagnose::TryRunnersUpFromAsGiven) refits a pair
   /// short of the floor with the leader from those of its own kind. Unset: the diagnosis only.
-  std::function<std::vector<Effect>(const Effect&, double band_high_hz)> starts_in_place;
+  std::function<std::vector<Effect>(const Effect&, const PlaceBand& band)> starts_in_place;
 };
 
 const std::vector<EffectDefinition>& EffectCatalogue();
