@@ -27,7 +27,7 @@ void RegisterLoopCommand(CLI::App& app) {
               "floor or nothing helps; writes the final model");
   struct Options {
     CommonOptions common;
-    std::string measurement, out, out_dir;
+    std::string measurement, out, out_dir, resume;
     std::string space;
     std::string geometry;
     std::string exclude_channels;
@@ -44,6 +44,10 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--out", o->out, "write the final model file (TOML) here")->required();
   command->add_option("--out-dir", o->out_dir,
                       "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
+  command->add_option("--resume", o->resume,
+                      "go on from a model this command wrote (--out) for the same --model and --with: its effects "
+                      "beyond theirs are the loop's own (they are refitted, merged, moved or dropped as a round's); "
+                      "the first fit is left out");
   command->add_option("--geometry", o->geometry, kGeometryHelp);
   command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
   command->add_flag("--no-channel-checks", o->no_channel_checks,
@@ -58,7 +62,7 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--fmin", o->fmin, "lower end of the band, Hz");
   command->add_option("--fmax", o->fmax, "upper end of the band, Hz");
   command->callback([o] {
-    const std::vector<std::string> inputs = {o->common.model_path, o->measurement};
+    const std::vector<std::string> inputs = {o->common.model_path, o->measurement, o->resume};
     CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
     // The outputs' folders before the long run, not after it.
     if (!o->out_dir.empty()) std::filesystem::create_directories(o->out_dir);
@@ -80,6 +84,14 @@ void RegisterLoopCommand(CLI::App& app) {
     options.diagnose.effects = SplitCommaList(o->effects);
     for (const auto& e : options.diagnose.effects) model::FindEffectDefinition(e);
     options.max_rounds = o->max_rounds;
+    if (!o->resume.empty()) {
+      options.resume_from = model::ReadModelFile(o->resume);
+      try {
+        diagnose::CheckResumedState(spec, *options.resume_from);
+      } catch (const InputError& e) {
+        throw InputError("--resume " + o->resume + ": " + e.what());
+      }
+    }
     if (StderrIsTerminal()) options.progress = [](const std::string& line) { std::cerr << "loop: " << line << std::endl; };
 
     const diagnose::LoopSummary summary = diagnose::RunLoop(spec, data, options);

@@ -269,6 +269,24 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
 
 }  // namespace
 
+void CheckResumedState(const model::ModelSpec& as_given, const model::ModelSpec& resumed) {
+  const bool prefix = resumed.effects.size() >= as_given.effects.size() &&
+                      std::equal(as_given.effects.begin(), as_given.effects.end(), resumed.effects.begin(),
+                                 [](const model::Effect& a, const model::Effect& b) { return Key(a) == Key(b); });
+  if (!prefix) {
+    throw InputError("the state to resume from holds the effects [" + KeysOf(resumed.effects) + "]; expected the given model's [" +
+                     KeysOf(as_given.effects) + "] first, in order");
+  }
+  auto names = [](const std::vector<model::PointSpec>& channels) {
+    std::vector<std::string> n;
+    for (const auto& c : channels) n.push_back(c.name);
+    return n;
+  };
+  if (names(as_given.sensors) != names(resumed.sensors) || names(as_given.excitations) != names(resumed.excitations)) {
+    throw InputError("the state to resume from has other sensors or excitations than the given model; expected the same channels");
+  }
+}
+
 std::vector<ChannelError> ChannelsAfterRawRefit(const model::ModelSpec& model, const measurement::FrfData& measurement,
                                                 const LoopOptions& options, const std::vector<ChannelError>& channels) {
   compare::ComparisonOptions raw = options.diagnose.comparison;
@@ -895,21 +913,26 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 
   model::ModelSpec current = spec;
   summary.history.push_back({"as given", "", comparison.Error(current)});
-  {
+  if (options.resume_from) {
+    CheckResumedState(spec, *options.resume_from);
+    current = *options.resume_from;
+    summary.history.push_back({"resumed", "", comparison.Error(current)});
+    summary.effects_added = EffectTexts(current.effects);
+    say("resumed: error " + std::to_string(summary.history.back().error));
+  } else {
     // The first fit with a continuation in band (fit::FitModelWithBandContinuation): a whole-stack test
     // fitted on the whole band at once can stop with modes paired to the wrong ones.
     const auto params = model::MatchParameters(current, model::WithEffectParameters(options.diagnose.params, current));
     fit::FitModelWithBandContinuation(current, measurement, options.diagnose.comparison, comparison, params, options.fit);
     summary.history.push_back({"fit", "", comparison.Error(current)});
     say("fit: error " + std::to_string(summary.history.back().error));
+    // Faults of the test bench before faults of the model: a channel the data single out as turned is
+    // corrected before the rounds, so that no effect of the catalogue is added to stand in for it (seed
+    // 57020: a3z turned 24 degrees, taken for two effects before the step after the rounds corrected
+    // it, 1.48x the floor). The correction earns its place again as every later effect is added
+    // (DropUnneededEffects).
+    if (options.turned_channel_deg > 0) AddTurnedChannel(spec, measurement, comparison, options, &current, &summary);
   }
-
-  // Faults of the test bench before faults of the model: a channel the data single out as turned is
-  // corrected before the rounds, so that no effect of the catalogue is added to stand in for it (seed
-  // 57020: a3z turned 24 degrees, taken for two effects before the step after the rounds corrected it,
-  // 1.48x the floor). The correction earns its place again as every later effect is added
-  // (DropUnneededEffects).
-  if (options.turned_channel_deg > 0) AddTurnedChannel(spec, measurement, comparison, options, &current, &summary);
 
   const DiagnoseOptions d = LoopDiagnoseOptions(options, spec);
   // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
@@ -1129,8 +1152,9 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     summary.final_channels = ChannelsAfterRawRefit(current, measurement, options, summary.final_channels);
   }
   summary.conclusion = Conclusion(summary, comparison, current);
-  // The final model's history: the model's own, then every step of the loop.
-  current.history = spec.history;
+  // The final model's history: the model's own (the resumed state's, with the steps that made it),
+  // then every step of the loop.
+  current.history = options.resume_from ? options.resume_from->history : spec.history;
   for (size_t k = 1; k < summary.history.size(); ++k) {
     const LoopStep& step = summary.history[k];
     current.history.push_back({"loop: " + step.action, step.error, step.effect.empty() ? "" : "--with " + step.effect});

@@ -175,6 +175,25 @@ TEST(LoopCommand, EndsAtTheNoiseFloorOfTheShippedExample) {
                            "frf.mat --report " + (dir / "again.json").string());
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_EQ(ReadJson(dir / "again.json")["error"].get<double>(), report["error"].get<double>());
+
+  // Resumed from the model it wrote: the payload is the loop's own, at the floor nothing more is added,
+  // and the error is the same to the bit.
+  auto resumed = RunStagefit("loop --measurement " + kExample + "frf.mat --effects payload,extra-body --resume " +
+                             (dir / "final.toml").string() + " --out " + (dir / "resumed.toml").string() + " --report " +
+                             (dir / "resumed.json").string());
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  const auto r2 = ReadJson(dir / "resumed.json");
+  EXPECT_EQ(r2["effects_added"], report["effects_added"]);
+  EXPECT_EQ(r2["error"].get<double>(), report["error"].get<double>());
+  EXPECT_TRUE(r2["confirmed"].get<bool>());
+  EXPECT_NE(resumed.output.find("resumed"), std::string::npos) << resumed.output;
+  // From a state without the given model's effects: refused, naming the file and what it expected.
+  auto refused = RunStagefit("loop --measurement " + kExample + "frf.mat --with \"delay@acquisition:tau=1e-4\" --resume " +
+                             (dir / "final.toml").string() + " --out " + (dir / "refused.toml").string());
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("--resume " + (dir / "final.toml").string()), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("expected the given model's [delay@acquisition] first"), std::string::npos) << refused.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "refused.toml"));
 }
 
 TEST(LoopCommand, AMissingOutputFolderIsRefusedBeforeTheRun) {

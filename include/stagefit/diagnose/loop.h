@@ -68,8 +68,19 @@ struct LoopOptions {
   /// Rounds run after holding the parameters an added effect ran to the bound of their range
   /// (HoldParametersAtBounds) when the loop ends at the noise floor with them; 0: no such step.
   int hold_rounds = 2;
+  /// A state of the loop to go on from: the model as given with the effects the loop added after its
+  /// own, fitted (a model a loop wrote, or the state before a later step). Its effects beyond the
+  /// given model's are the loop's own: they earn their place, merge, move and are dropped as a
+  /// round's are. The first fit and the turned-channel check before the rounds are left out (the
+  /// history's second step is "resumed"); the rounds and the steps after them run as usual. Unset:
+  /// from the model as given. Its effects must begin with the given model's.
+  std::optional<model::ModelSpec> resume_from;
   std::function<void(const std::string&)> progress;  ///< one line per step, for a terminal
 };
+
+/// Throws InputError unless `resumed` (LoopOptions::resume_from) holds the effects of `as_given` first,
+/// in order, and the same sensors and excitations.
+void CheckResumedState(const model::ModelSpec& as_given, const model::ModelSpec& resumed);
 
 /// One step of the loop: what was done and the error after it.
 struct LoopStep {
