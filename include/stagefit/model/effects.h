@@ -132,10 +132,11 @@ struct EffectDefinition {
   /// hexapod, fitted from 0.7 kg, stopped 33-40 mm off-axis and 13 mm below; an extra body with its
   /// modes at twice the band's top, where a fit that made its joint rigid in translation has no slope
   /// left, and with its rocking modes at the centre of the band where the model's error is largest,
-  /// where a fit that made its joint rigid in rocking has none). The relocation step refits the model with each in the effect's place, beside its diagnosis,
-  /// which starts the other kinds from their defaults on the model without the effect; the step that
-  /// fits a round's next candidates beside its leader (diagnose::TryRunnersUpFromAsGiven) refits a pair
-  /// short of the floor with the leader from those of its own kind. Unset: the diagnosis only.
+  /// where a fit that made its joint rigid in rocking has none). The relocation step refits the model
+  /// with each in the effect's place, beside its diagnosis, which starts the other kinds from their
+  /// defaults on the model without the effect; the step that fits a round's next candidates beside its
+  /// leader (diagnose::TryRunnersUpFromAsGiven) refits a pair short of the floor with the leader from
+  /// those of its own kind. Unset: the diagnosis only.
   std::function<std::vector<Effect>(const Effect&, const PlaceBand& band)> starts_in_place;
 };
 
