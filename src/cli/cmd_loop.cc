@@ -43,7 +43,8 @@ void RegisterLoopCommand(CLI::App& app) {
   command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
   command->add_option("--out", o->out, "write the final model file (TOML) here")->required();
   command->add_option("--out-dir", o->out_dir,
-                      "write loop_history.csv and the comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
+                      "write loop_history.csv, after_rounds.toml (the model as the rounds left it, to --resume) and the "
+                      "comparison tables before/ and after/ (scripts/plot_loop.sh DIR)");
   command->add_option("--resume", o->resume,
                       "go on from a model this command wrote (--out) for the same --model and --with: its effects "
                       "beyond theirs are the loop's own (they are refitted, merged, moved or dropped as a round's); "
@@ -64,6 +65,7 @@ void RegisterLoopCommand(CLI::App& app) {
   command->callback([o] {
     const std::vector<std::string> inputs = {o->common.model_path, o->measurement, o->resume};
     CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
+    if (!o->out_dir.empty()) CheckNotAnInput((std::filesystem::path(o->out_dir) / "after_rounds.toml").string(), {inputs.begin(), inputs.end()});
     // The outputs' folders before the long run, not after it.
     if (!o->out_dir.empty()) std::filesystem::create_directories(o->out_dir);
     const std::filesystem::path out_parent = std::filesystem::absolute(o->out).parent_path();
@@ -105,6 +107,7 @@ void RegisterLoopCommand(CLI::App& app) {
     if (!o->out_dir.empty()) {
       const std::filesystem::path dir = o->out_dir;
       WriteFileAtomically(dir / "loop_history.csv", diagnose::FormatLoopHistory(summary));
+      model::WriteModelFile(dir / "after_rounds.toml", summary.after_rounds);
       CsvMeta meta;
       meta.units = {{"step", ""}, {"action", ""}, {"effect", ""}, {"error", "1"}, {"noise_floor", "1"}, {"times_floor", "1"}};
       meta.notes = {"error: the SPEC §4 error scalar after each step of the loop; noise_floor: the error the "
@@ -115,8 +118,8 @@ void RegisterLoopCommand(CLI::App& app) {
       const std::vector<std::filesystem::path> protect = {o->measurement, o->common.model_path, o->out};
       compare::WriteCompareTables(dir / "before", compare::CompareModel(summary.initial, data, before_options), protect);
       compare::WriteCompareTables(dir / "after", compare::CompareModel(summary.final_model, data, before_options), protect);
-      std::printf("wrote %s/loop_history.csv, %s/before/, %s/after/ (plots: bash scripts/plot_loop.sh %s)\n",
-                  o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str());
+      std::printf("wrote %s/loop_history.csv, %s/after_rounds.toml, %s/before/, %s/after/ (plots: bash scripts/plot_loop.sh %s)\n",
+                  o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str(), o->out_dir.c_str());
     }
     if (!o->common.report_path.empty()) {
       nlohmann::json history = nlohmann::json::array();

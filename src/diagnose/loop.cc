@@ -1057,6 +1057,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     }
   };
   run_rounds(options.max_rounds, false);
+  summary.after_rounds = current;
   // The steps after the rounds: effects merged and moved, a turned channel, rigid limits; then the
   // plausibility check.
   // Several effects one effect can be (two couplings of a joint: its stiffness centre off its origin).

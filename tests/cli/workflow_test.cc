@@ -168,7 +168,7 @@ TEST(LoopCommand, EndsAtTheNoiseFloorOfTheShippedExample) {
   EXPECT_NE(report["conclusion"].get<std::string>().find("with payload@hexapod: they explain the measurement"), std::string::npos)
       << report["conclusion"];
   EXPECT_NE(r.output.find("x floor"), std::string::npos) << r.output;
-  for (const char* f : {"plots/loop_history.csv", "plots/before/compare_frf.csv", "plots/after/compare_frf.csv"}) {
+  for (const char* f : {"plots/loop_history.csv", "plots/after_rounds.toml", "plots/before/compare_frf.csv", "plots/after/compare_frf.csv"}) {
     EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
   }
   auto again = RunStagefit("compare --model " + (dir / "final.toml").string() + " --measurement " + kExample +

@@ -1218,7 +1218,9 @@ TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
 // rz's Dx-Ry and Dy-Rx couplings (1.06x the floor); the merge beside the extra body stays above that,
 // and the body's rigid limit, a payload, is taken (1.05x, 0.0097 off the noise-free truth). Beside the
 // payload the merge takes the offset for the couplings: the model is the truth's, at the floor.
-// (Extra bodies and couplings tried in the rounds, for time.)
+// (Extra bodies and couplings tried in the rounds. The loop is resumed from the model its rounds left,
+// LoopSummary::after_rounds of this case's loop written to tests/diagnose/data, for time: the steps
+// after the rounds are what is tested; the whole loop takes 80 s alone.)
 TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 82164, synthetic::EvalLoopCaseOptions(2, 150, 509));
@@ -1226,6 +1228,9 @@ TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
   LoopOptions options = Options({"extra-body", "coupled-stiffness"});
   options.max_rounds = LoopOptions{}.max_rounds;
   options.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  options.resume_from = model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/loop_82164_after_rounds.toml");
+  ASSERT_EQ(Keys(options.resume_from->effects),
+            (std::vector<std::string>{"extra-body@hexapod", "coupled-stiffness@rz.Dx-Ry", "coupled-stiffness@rz.Dy-Rx"}));
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
   std::cout << summary.HistoryTable();
   const auto step = [&](const std::string& action) {
@@ -1233,6 +1238,7 @@ TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
   };
   const auto limit = step("take payload@hexapod for extra-body@hexapod (its rigid limit)");
   const auto merge = step("merge coupled-stiffness@rz.Dx-Ry, coupled-stiffness@rz.Dy-Rx into joint-offset@rz");
+  ASSERT_EQ(summary.history[1].action, "resumed");
   ASSERT_NE(limit, summary.history.end());
   ASSERT_NE(merge, summary.history.end());
   EXPECT_LT(limit, merge);
@@ -1247,13 +1253,17 @@ TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
 // the second, the offset's own starts (dz = 0 and +-0.1 m) ended at dz = 2 mm (0.0406), and rz's Dy-Rx
 // coupling, which the offset makes, was added in its place: 1.05x the floor, 0.0079 off the noise-free
 // truth. Fitted from what that coupling makes of it (dz = -k / k_Dy), the offset ranks first and the
-// model is the truth's. (The whole catalogue: with effects left out, the offset's own starts reached it.)
+// model is the truth's. (The whole catalogue: with effects left out, the offset's own starts reached it.
+// The loop is resumed from the model its first round left, LoopSummary::after_rounds of this case's
+// loop with one round, written to tests/diagnose/data, for time: the second round is what is tested.)
 TEST(Loop, FitsTheJointOffsetACouplingStandsFor) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 82136, synthetic::EvalLoopCaseOptions(2, 150, 619));
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry", "joint-offset@rz"}));
   LoopOptions options;
   options.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  options.resume_from = model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/loop_82136_after_round_1.toml");
+  ASSERT_EQ(Keys(options.resume_from->effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry"}));
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
   std::cout << summary.HistoryTable();
   ASSERT_EQ(Keys(summary.final_model.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry", "joint-offset@rz"}));

@@ -92,6 +92,9 @@ struct LoopStep {
 struct LoopSummary {
   model::ModelSpec initial;            ///< the model as given
   model::ModelSpec final_model;        ///< with every added effect and its history entries
+  /// The model as the rounds left it, before the steps after them (merges, moves, the turned channel,
+  /// rigid limits, holds): a state to resume from (LoopOptions::resume_from) to run those steps again.
+  model::ModelSpec after_rounds;
   std::vector<LoopStep> history;       ///< in order; history.back().error is the final model's
   std::vector<std::string> effects_added;
   compare::NoiseFloor noise_floor;
