@@ -40,19 +40,6 @@ double TimesFloor(double error, const compare::NoiseFloor& floor) {
   return floor.known && floor.floor > 0.0 ? error / floor.floor : std::numeric_limits<double>::quiet_NaN();
 }
 
-/// The compared band as an effect's other starts in its place see it
-/// (model::EffectDefinition::starts_in_place): its top, and the centre of its worst part with `model`.
-model::PlaceBand PlaceBandOf(const compare::Comparison& comparison, const model::ModelSpec& model) {
-  model::PlaceBand band;
-  band.high_hz = comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
-  try {
-    band.worst_centre_hz = WorstBandCentreHz(comparison, model);
-  } catch (const std::exception&) {
-    // A model that cannot be evaluated: its worst band is not known.
-  }
-  return band;
-}
-
 /// The change of the Bayesian information criterion from a model at `error_before` to one at `error_after`
 /// with `k` more parameters, on `n` residuals (< 0 supports the second).
 double DeltaBic(double error_after, double error_before, int k, double n) {
@@ -268,6 +255,17 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
 }
 
 }  // namespace
+
+model::PlaceBand PlaceBandOf(const compare::Comparison& comparison, const model::ModelSpec& model) {
+  model::PlaceBand band;
+  band.high_hz = comparison.frequency_hz()(comparison.frequency_hz().size() - 1);
+  try {
+    band.worst_centre_hz = WorstBandCentreHz(comparison, model);
+  } catch (const std::exception&) {
+    // A model that cannot be evaluated: its worst band is not known.
+  }
+  return band;
+}
 
 void CheckResumedState(const model::ModelSpec& as_given, const model::ModelSpec& resumed) {
   const bool prefix = resumed.effects.size() >= as_given.effects.size() &&

@@ -1043,7 +1043,7 @@ TEST(RelocateEffects, StartsAnExtraBodysRockingAtTheWorstBand) {
   const model::ModelSpec rounds = FitEffects(nominal, comparison, {offset, rigid}, params, RoundsFitOptions()).spec;
   ASSERT_GT(comparison.Error(rounds), 4 * floor);
   // Its worst band is where the body's rocking is missing.
-  const model::PlaceBand band{comparison.frequency_hz()(comparison.frequency_hz().size() - 1), WorstBandCentreHz(comparison, rounds)};
+  const model::PlaceBand band = PlaceBandOf(comparison, rounds);
   ASSERT_TRUE(band.worst_centre_hz);
   EXPECT_NEAR(*band.worst_centre_hz, 315, 10);
   const model::EffectDefinition& definition = model::FindEffectDefinition("extra-body");

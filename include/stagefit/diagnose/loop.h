@@ -82,6 +82,12 @@ struct LoopOptions {
 /// in order, and the same sensors and excitations.
 void CheckResumedState(const model::ModelSpec& as_given, const model::ModelSpec& resumed);
 
+/// The compared band as an effect's other starts in its place see it
+/// (model::EffectDefinition::starts_in_place): its top, and the centre of its worst part with `model`
+/// (WorstBandCentreHz; unknown when the model cannot be evaluated). The relocation and runners-up
+/// steps make the starts with it.
+model::PlaceBand PlaceBandOf(const compare::Comparison& comparison, const model::ModelSpec& model);
+
 /// One step of the loop: what was done and the error after it.
 struct LoopStep {
   std::string action;  ///< "as given", "fit", "add <with>", "refit"
