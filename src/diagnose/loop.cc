@@ -602,6 +602,21 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
   return moved;
 }
 
+namespace {
+
+// RelocateEffects' rule for a refit of the whole model: `trial` is taken when its error is more than 1 %
+// lower than `history`'s last (the floor's standard deviation is about 1 % of it): `current` becomes it
+// and an `action` step is appended. False, nothing changed, otherwise.
+bool TakeWhenLower(model::ModelSpec trial, double trial_error, const std::string& action, model::ModelSpec* current,
+                   std::vector<LoopStep>* history) {
+  if (!(trial_error < 0.99 * history->back().error)) return false;
+  history->push_back({action, "", trial_error});
+  *current = std::move(trial);
+  return true;
+}
+
+}  // namespace
+
 bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                        const compare::Comparison& comparison, const LoopOptions& options, model::ModelSpec* current,
                        std::vector<LoopStep>* history) {
@@ -615,11 +630,7 @@ bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfD
   } catch (const std::exception&) {
     return false;  // a model the fit made unbuildable: nothing changed
   }
-  // RelocateEffects' rule: more than 1 % lower (the floor's standard deviation is about 1 % of it).
-  if (!(trial_error < 0.99 * history->back().error)) return false;
-  history->push_back({"refit in band stages from the model as given", "", trial_error});
-  *current = std::move(trial);
-  return true;
+  return TakeWhenLower(std::move(trial), trial_error, "refit in band stages from the model as given", current, history);
 }
 
 bool FitFromSeveralStarts(const model::ModelSpec& as_given, const compare::Comparison& comparison,
@@ -639,11 +650,7 @@ bool FitFromSeveralStarts(const model::ModelSpec& as_given, const compare::Compa
   } catch (const std::exception&) {
     return false;  // a model the fit made unbuildable: nothing changed
   }
-  // RelocateEffects' rule: more than 1 % lower (the floor's standard deviation is about 1 % of it).
-  if (!(trial_error < 0.99 * history->back().error)) return false;
-  history->push_back({"fit from several starts", "", trial_error});
-  *current = std::move(trial);
-  return true;
+  return TakeWhenLower(std::move(trial), trial_error, "fit from several starts", current, history);
 }
 
 std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
