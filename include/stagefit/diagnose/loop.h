@@ -237,9 +237,9 @@ bool RefitInBandStages(const model::ModelSpec& as_given, const measurement::FrfD
 /// stages stopped at 1.17x the floor with the granite's Dy spring 15x soft, standing in for the drive,
 /// where the servo fitted from there reached 1.15x and no round added it; from random starts 1.12x (the
 /// granite's Dy at the truth's, ry's soft in its place), and the servo from there 1.04x, 0.0024 from the
-/// noise-free truth. Taken when more than 1 % lower than `history`'s
-/// last error: `current` becomes that model and a "fit from several starts" step is appended. False,
-/// nothing changed, otherwise (and when `current` is not in that range, or with first_fit_starts <= 1).
+/// noise-free truth. Taken when more than 1 % lower than `history`'s last error: `current` becomes that
+/// model and a "fit from several starts" step is appended. False, nothing changed, otherwise (and when
+/// `current` is not in that range, or with first_fit_starts <= 1).
 bool FitFromSeveralStarts(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                           const LoopOptions& options, model::ModelSpec* current, std::vector<LoopStep>* history);
 
