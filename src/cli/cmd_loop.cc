@@ -65,7 +65,9 @@ void RegisterLoopCommand(CLI::App& app) {
   command->callback([o] {
     const std::vector<std::string> inputs = {o->common.model_path, o->measurement, o->resume};
     CheckNotAnInput(o->out, {inputs.begin(), inputs.end()});
-    if (!o->out_dir.empty()) CheckNotAnInput((std::filesystem::path(o->out_dir) / "after_rounds.toml").string(), {inputs.begin(), inputs.end()});
+    if (!o->out_dir.empty()) {
+      CheckNotAnInput((std::filesystem::path(o->out_dir) / "after_rounds.toml").string(), {inputs.begin(), inputs.end()});
+    }
     // The outputs' folders before the long run, not after it.
     if (!o->out_dir.empty()) std::filesystem::create_directories(o->out_dir);
     const std::filesystem::path out_parent = std::filesystem::absolute(o->out).parent_path();

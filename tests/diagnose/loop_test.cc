@@ -91,6 +91,11 @@ double DistanceToTruth(const model::ModelSpec& model, const synthetic::HiddenEff
   return (r - r_truth).norm();
 }
 
+// A loop state stored in tests/diagnose/data (its README says how each was written), to resume from.
+model::ModelSpec StoredLoopState(const std::string& file) {
+  return model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/" + file);
+}
+
 // An extra body on the hexapod with the mass and height of the case's hidden body `body_name` and the
 // joint stiffnesses k (translations) and kr (rotations): where the rigid-limit tests start its fit.
 model::Effect ExtraBodyOnTheHexapod(const synthetic::HiddenEffectCase& c, const std::string& body_name, double k, double kr) {
@@ -281,7 +286,7 @@ TEST(Loop, NamesNoRawChannelTheModelFitsInRawSpace) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 63012, synthetic::EvalLoopCaseOptions(2, 150.0, 368));
   LoopOptions options = Options({"payload", "extra-body", "delay"});
-  options.resume_from = model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/loop_63012_after_rounds.toml");
+  options.resume_from = StoredLoopState("loop_63012_after_rounds.toml");
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
   std::cout << summary.HistoryTable();
   ASSERT_TRUE(summary.confirmed);
@@ -1288,7 +1293,7 @@ TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
   LoopOptions options = Options({"extra-body", "coupled-stiffness"});
   options.max_rounds = LoopOptions{}.max_rounds;
   options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  options.resume_from = model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/loop_82164_after_rounds.toml");
+  options.resume_from = StoredLoopState("loop_82164_after_rounds.toml");
   ASSERT_EQ(Keys(options.resume_from->effects),
             (std::vector<std::string>{"extra-body@hexapod", "coupled-stiffness@rz.Dx-Ry", "coupled-stiffness@rz.Dy-Rx"}));
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
@@ -1322,7 +1327,7 @@ TEST(Loop, FitsTheJointOffsetACouplingStandsFor) {
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry", "joint-offset@rz"}));
   LoopOptions options;
   options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  options.resume_from = model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/loop_82136_after_round_1.toml");
+  options.resume_from = StoredLoopState("loop_82136_after_round_1.toml");
   ASSERT_EQ(Keys(options.resume_from->effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry"}));
   const LoopSummary summary = RunLoop(nominal, c.measurement, options);
   std::cout << summary.HistoryTable();
