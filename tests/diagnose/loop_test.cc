@@ -671,6 +671,52 @@ TEST(MergeMimickingEffects, TakesAJointOffsetForTwoCouplingsItMakes) {
   EXPECT_EQ(history.size(), 2u);
 }
 
+// Two couplings of a joint that are its offset beside a coupling of its own: seed 82755 of eval_loop
+// (the hexapod's stiffness centre 109 mm below the model's and a Dx-Ry coupling of 2.52e6 N/rad there,
+// 5-150 Hz, 626 frequencies). The loop's rounds added the hexapod's Dy-Rx and Dx-Ry couplings and stopped
+// at 1.15x the floor, 0.0185 off the noise-free truth (LoopSummary::after_rounds of this case's loop,
+// written to tests/diagnose/data). The offset alone cannot make both: their terms have one sign, an
+// offset's opposite signs. Made from the Dy-Rx coupling, beside the Dx-Ry coupling less the offset's
+// own term, it is the truth's.
+TEST(MergeMimickingEffects, TakesAJointOffsetBesideWhatIsLeftOfTheCouplings) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 82755, synthetic::EvalLoopCaseOptions(2, 150, 626));
+  ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"joint-offset@hexapod", "coupled-stiffness@hexapod.Dx-Ry"}));
+  const model::JointSpec& hexapod = c.truth.joints[model::FindJoint(c.truth, "hexapod")];
+  const double dz = hexapod.origin_W.z() - nominal.joints[model::FindJoint(nominal, "hexapod")].origin_W.z();
+  const double k_truth = hexapod.couplings.at(0).stiffness;
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const double floor = comparison.CalcNoiseFloor().floor;
+  model::ModelSpec current = StoredLoopState("loop_82755_after_rounds.toml");
+  ASSERT_EQ(Keys(current.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dy-Rx", "coupled-stiffness@hexapod.Dx-Ry"}));
+  std::vector<LoopStep> history = {{"the loop's rounds", "", comparison.Error(current)}};
+  ASSERT_GT(history[0].error, 1.1 * floor);
+  ASSERT_GT(DistanceToTruth(current, c), 0.01);
+
+  const LoopOptions options;
+  const auto merged = MergeMimickingEffects(nominal, comparison, options, &current, &history);
+  ASSERT_EQ(merged, std::vector<std::string>{"coupled-stiffness@hexapod.Dy-Rx, coupled-stiffness@hexapod.Dx-Ry -> "
+                                             "joint-offset@hexapod, coupled-stiffness@hexapod.Dx-Ry"});
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[1].action,
+            "merge coupled-stiffness@hexapod.Dy-Rx, coupled-stiffness@hexapod.Dx-Ry into joint-offset@hexapod and what is left of "
+            "coupled-stiffness@hexapod.Dx-Ry");
+  EXPECT_EQ(history[1].error, comparison.Error(current));
+  ASSERT_EQ(Keys(current.effects), (std::vector<std::string>{"joint-offset@hexapod", "coupled-stiffness@hexapod.Dx-Ry"}));
+  std::cout << "merged: " << history[1].error / floor << "x the floor, " << DistanceToTruth(current, c) << " off the truth, dz "
+            << current.effects[0].parameters.at("dz") << " (truth " << dz << "), k " << current.effects[1].parameters.at("k")
+            << " (truth " << k_truth << ")\n";
+  EXPECT_LT(history[1].error, 1.05 * floor);
+  EXPECT_LT(DistanceToTruth(current, c), 0.005);
+  EXPECT_NEAR(current.effects[0].parameters.at("dz"), dz, 0.01);
+  EXPECT_NEAR(current.effects[1].parameters.at("k"), k_truth, 0.03 * std::abs(k_truth));
+  // One coupling left at the joint: nothing to merge now.
+  EXPECT_TRUE(MergeMimickingEffects(nominal, comparison, options, &current, &history).empty());
+  EXPECT_EQ(history.size(), 2u);
+  // Not tried at the floor, where it would add parameters the loop does not look for:
+  // Loop.MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit.
+}
+
 // The model the hold step ends with is kept at the floor, with every effect plausible, when its error is
 // within 1 % of the model's before or as low as the loop looks for (rounds_above_times_floor, 1.06x).
 TEST(KeepModelAfterHold, WithinOnePercentOrWhereTheLoopLooksNoFurther) {
@@ -1282,7 +1328,9 @@ TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
 // hexapod's centre of mass, 5-150 Hz, 509 frequencies). The rounds add an extra body on the hexapod and
 // rz's Dx-Ry and Dy-Rx couplings (1.06x the floor); the merge beside the extra body stays above that,
 // and the body's rigid limit, a payload, is taken (1.05x, 0.0097 off the noise-free truth). Beside the
-// payload the merge takes the offset for the couplings: the model is the truth's, at the floor.
+// payload the merge takes the offset for the couplings: the model is the truth's, at the floor. (At
+// 1.059x, within the round threshold, the merge into the offset beside what is left of a coupling is not
+// tried: there it took rz's offset and a Dx-Ry coupling the data do not hold, 2 % lower.)
 // (Extra bodies and couplings tried in the rounds. The loop is resumed from the model its rounds left,
 // LoopSummary::after_rounds of this case's loop written to tests/diagnose/data, for time: the steps
 // after the rounds are what is tested; the whole loop takes 80 s alone.)
