@@ -782,16 +782,16 @@ std::string MergeIntoOneAndTheMimicsLeft(const model::ModelSpec& as_given, const
     with.push_back(effect);
     for (const model::Effect& m : mimics) {
       if (m == from) continue;
-      model::Effect left = m;
+      model::Effect remainder = m;
       const auto t = std::find_if(terms.begin(), terms.end(), [&](const model::Effect& e) { return Key(e) == Key(m); });
       double size = 0;
-      for (auto& [name, value] : left.parameters) {
+      for (auto& [name, value] : remainder.parameters) {
         if (t != terms.end()) value -= t->parameters.at(name);
-        const model::EffectParameterRange r = model::EffectRange(without, left, name);
+        const model::EffectParameterRange r = model::EffectRange(without, remainder, name);
         value = std::clamp(value, r.lower, r.upper);
         size = std::max(size, std::abs(value) / r.scale);
       }
-      if (size > kMimicCancelled) with.push_back(left);
+      if (size > kMimicCancelled) with.push_back(remainder);
     }
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
     if (trial_error < best_error) {

@@ -318,8 +318,8 @@ std::vector<std::string> TakeRigidLimits(const model::ModelSpec& as_given, const
 /// LoopOptions::rounds_above_times_floor (it adds parameters; at the floor the loop looks no further). Seed 82755 of eval_loop (the hexapod's
 /// stiffness centre 109 mm below the model's and a Dx-Ry coupling of 2.52e6 N/rad there, 150 Hz band): the
 /// loop added the hexapod's Dy-Rx and Dx-Ry couplings (1.15x the floor, 0.0185 off the noise-free truth),
-/// whose offset alone (their terms of opposite sign) does not fit; the offset made from the Dy-Rx coupling
-/// beside the Dx-Ry coupling less the offset's own term is the truth's.
+/// both positive where an offset makes terms of opposite signs, so no offset alone fits them; the offset
+/// made from the Dy-Rx coupling beside the Dx-Ry coupling less the offset's own term is the truth's.
 /// Returns "<effect>, <effect> -> <effect>[, <effect>...]" for each merge (a "merge" step is appended to
 /// `history`); empty when none was taken.
 std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
