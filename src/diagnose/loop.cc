@@ -753,6 +753,19 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
 
 namespace {
 
+// The size of `e` on `on` (the model it is applied to): its largest parameter on the scale of its range
+// (a coupling: on 0.95 sqrt(k_a k_b)), after each parameter outside its range is put at its bound. Where
+// the mimic steps start and what they leave out as cancelled (kMimicCancelled).
+double ClampToRangesAndSize(const model::ModelSpec& on, model::Effect* e) {
+  double size = 0;
+  for (auto& [name, value] : e->parameters) {
+    const model::EffectParameterRange r = model::EffectRange(on, *e, name);
+    value = std::clamp(value, r.lower, r.upper);
+    size = std::max(size, std::abs(value) / r.scale);
+  }
+  return size;
+}
+
 // MergeMimickingEffects' second try at a joint whose `mimics` (on `without`, the loop's state without
 // them; `others`, the effects left) `one` cannot stand for all together: `one` made from each mimic alone
 // (EffectDefinition::from_mimics), beside what is left of each other mimic once the term `one` makes of
@@ -784,14 +797,10 @@ std::string MergeIntoOneAndTheMimicsLeft(const model::ModelSpec& as_given, const
       if (m == from) continue;
       model::Effect remainder = m;
       const auto t = std::find_if(terms.begin(), terms.end(), [&](const model::Effect& e) { return Key(e) == Key(m); });
-      double size = 0;
-      for (auto& [name, value] : remainder.parameters) {
-        if (t != terms.end()) value -= t->parameters.at(name);
-        const model::EffectParameterRange r = model::EffectRange(without, remainder, name);
-        value = std::clamp(value, r.lower, r.upper);
-        size = std::max(size, std::abs(value) / r.scale);
+      if (t != terms.end()) {
+        for (auto& [name, value] : remainder.parameters) value -= t->parameters.at(name);
       }
-      if (size > kMimicCancelled) with.push_back(remainder);
+      if (ClampToRangesAndSize(without, &remainder) > kMimicCancelled) with.push_back(remainder);
     }
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
     if (trial_error < best_error) {
@@ -899,16 +908,11 @@ std::vector<std::string> ReduceToTheMimicsLeft(const model::ModelSpec& as_given,
       }
       for (auto& [name, value] : t->parameters) value += m.parameters.at(name);
     }
-    // Each term's size: its largest parameter on the scale of its range (a coupling: on
-    // 0.95 sqrt(k_a k_b)); the largest first. A start outside a range is put at its bound.
+    // Each term's size (ClampToRangesAndSize: a start outside a range is put at its bound); the
+    // largest first.
     std::vector<std::pair<double, model::Effect>> sized;
     for (model::Effect& t : terms) {
-      double size = 0;
-      for (auto& [name, value] : t.parameters) {
-        const model::EffectParameterRange r = model::EffectRange(without, t, name);
-        value = std::clamp(value, r.lower, r.upper);
-        size = std::max(size, std::abs(value) / r.scale);
-      }
+      const double size = ClampToRangesAndSize(without, &t);
       sized.emplace_back(size, t);
     }
     std::stable_sort(sized.begin(), sized.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
