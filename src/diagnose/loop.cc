@@ -803,6 +803,11 @@ std::string MergeIntoOneAndTheMimicsLeft(const model::ModelSpec& as_given, const
       if (ClampToRangesAndSize(without, &remainder) > kMimicCancelled) with.push_back(remainder);
     }
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
+    if (options.progress) {
+      std::string tried;
+      for (size_t i = others.size(); i < with.size(); ++i) tried += (tried.empty() ? "" : " beside ") + with[i].ToString();
+      options.progress("merge tried " + tried + ": error " + std::to_string(trial_error));
+    }
     if (trial_error < best_error) {
       best = std::move(trial);
       best_error = trial_error;
@@ -855,6 +860,7 @@ std::vector<std::string> MergeMimickingEffects(const model::ModelSpec& as_given,
       // From what the effects make (the loop's state with the one effect in their place) and from the
       // model as given, the better kept.
       auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, without, with);
+      if (options.progress) options.progress("merge tried " + effect.ToString() + ": error " + std::to_string(trial_error));
       // One effect in place of several, as close to the data as they are (within kRigidLimitTolerance).
       // Otherwise it may be one of them beside what is left of the others (82755 of eval_loop).
       if (!(trial_error <= (1 + kRigidLimitTolerance) * history->back().error)) {
