@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -95,8 +96,20 @@ class AnalyticCost final : public ceres::CostFunction {
     const int m = num_residuals();
     const Eigen::VectorXd p = context_->map.ToP(parameters[0]);
     const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
-    ++context_->num_evaluations;
-    if (!context_->problem->Evaluate(p, &r_, want_jacobian ? &J_ : nullptr)) return false;
+    // The last point again (bit for bit): its residuals, and its Jacobian when it was evaluated there.
+    // With bounds, each Levenberg-Marquardt step is a projected line search from step 1 (FitOptions::
+    // projected_line_search), whose first trial evaluates r and J at the candidate; the minimizer
+    // then evaluates the candidate's cost, and its r and J once the step is taken: three evaluations of
+    // one point, two of them with the Jacobian.
+    const bool again = at_.size() == n && std::memcmp(at_.data(), parameters[0], sizeof(double) * n) == 0 &&
+                       (!want_jacobian || jacobian_at_);
+    if (!again) {
+      ++context_->num_evaluations;
+      at_.resize(0);
+      if (!context_->problem->Evaluate(p, &r_, want_jacobian ? &J_ : nullptr)) return false;
+      at_ = Eigen::Map<const Eigen::VectorXd>(parameters[0], n);
+      jacobian_at_ = want_jacobian;
+    }
     STAGEFIT_ASSERT(r_.size() == m, "the problem returned " << r_.size() << " residuals, expected " << m);
     if (!AllFinite(r_)) return false;
     Eigen::Map<Eigen::VectorXd>(residuals, m) = r_;
@@ -115,6 +128,8 @@ class AnalyticCost final : public ceres::CostFunction {
   const EvaluationContext* context_;
   mutable Eigen::VectorXd r_;
   mutable Eigen::MatrixXd J_;
+  mutable Eigen::VectorXd at_;       // the theta r_ was evaluated at (empty: none)
+  mutable bool jacobian_at_ = false;  // J_ too
 };
 
 // r(theta) alone, for ceres::DynamicNumericDiffCostFunction.

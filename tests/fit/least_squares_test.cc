@@ -507,6 +507,57 @@ TEST(Solve, StallStopEndsAtTheFirstIterationWhoseWindowLoweredTheErrorByLessThan
   EXPECT_LT(stalled.final_error, (1.0 + kShare) * free_run.final_error);
 }
 
+// Every Evaluate() call of a problem: its point and whether the Jacobian was asked for.
+class RecordedCalls final : public LeastSquaresProblem {
+ public:
+  explicit RecordedCalls(const LeastSquaresProblem& problem) : problem_(problem) {}
+  int num_parameters() const override { return problem_.num_parameters(); }
+  int num_residuals() const override { return problem_.num_residuals(); }
+  bool has_jacobian() const override { return true; }
+  bool Evaluate(const Eigen::VectorXd& p, Eigen::VectorXd* r, Eigen::MatrixXd* J) const override {
+    calls.push_back({p, J != nullptr});
+    return problem_.Evaluate(p, r, J);
+  }
+  struct Call {
+    Eigen::VectorXd p;
+    bool jacobian;
+  };
+  mutable std::vector<Call> calls;
+
+ private:
+  const LeastSquaresProblem& problem_;
+};
+
+// With the projected line search (the diagnosis' fits of candidates), from far with long first steps:
+// no point is evaluated twice for the same thing. The line search's first trial is the step's
+// candidate, evaluated with the Jacobian (Ceres' cubic interpolation asks for it at every trial);
+// Ceres then asked again for the candidate's cost and, when it took the step, for its Jacobian.
+TEST(Solve, ProjectedLineSearchEvaluatesNoPointTwiceForTheSameThing) {
+  const ExponentialDecay decay = MakeDecay(29);
+  const RecordedCalls problem(decay);
+  std::vector<ParameterSpec> parameters = DecayParameters();
+  parameters[1].initial = 8.0;
+  FitOptions options;
+  options.projected_line_search = true;
+  options.initial_trust_region_radius = 1e4;
+  options.analyse_optimum = false;
+  const FitSummary summary = Solve(problem, parameters, options);
+  ASSERT_EQ(summary.status, FitStatus::kConverged) << summary.FullReport();
+  EXPECT_NEAR(summary.parameters[1].value, kTrueTau, 0.01);
+
+  int jacobians = 0;
+  for (size_t i = 0; i < problem.calls.size(); ++i) {
+    jacobians += problem.calls[i].jacobian;
+    // The same point again right after: only residuals first and the Jacobian then.
+    if (i > 0 && problem.calls[i].p == problem.calls[i - 1].p) {
+      EXPECT_TRUE(!problem.calls[i - 1].jacobian && problem.calls[i].jacobian) << "calls " << i - 1 << " and " << i;
+    }
+  }
+  // The start's Jacobian and at least one for each step taken: the steps' Jacobians were not skipped.
+  EXPECT_GE(jacobians, 2);
+  EXPECT_LT(problem.calls.size(), 3u * static_cast<size_t>(summary.iterations + 1));
+}
+
 // Copies of the wrapper called from four threads: no two calls overlap, and every call is made.
 TEST(OneCallAtATime, RunsTheCallsOfAllItsCopiesOneAtATime) {
   EXPECT_FALSE(OneCallAtATime({}));

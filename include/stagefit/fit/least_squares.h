@@ -146,7 +146,8 @@ struct FitOptions {
   /// Ceres with bounds: follow each successful step with a projected line search, which evaluates the
   /// Jacobian at every trial point. It gets more out of a few iterations (the diagnosis screens its
   /// candidates with 4); a full fit converges as well without it, in two thirds of the time
-  /// (tests/bench/bench_fit: median 1.09 -> 0.76 s with the other changes of that step).
+  /// (tests/bench/bench_fit: median 1.09 -> 0.76 s with the other changes of that step). Its first
+  /// trial is the step's candidate: the cost and Jacobian Ceres asks for there next are the trial's.
   bool projected_line_search = false;
   /// Ceres convergence: relative cost change, max-norm of the projected gradient relative to its
   /// start value, and relative step size.
