@@ -102,7 +102,8 @@ void AccumulateDerivatives(const Eigen::Ref<const Eigen::ArrayXd>& omega, const 
                            std::vector<Eigen::MatrixXcd>* out, Eigen::ArrayXcd* factor, Eigen::MatrixXcd* grouped) {
   const Eigen::Index nb = omega.size();
   auto g = factor->head(nb);
-  if (grouped->rows() < nb || grouped->cols() != layout.no) grouped->resize(std::max(nb, grouped->rows()), layout.no);
+  // As tall as `block` (the workspace's block size), whatever nb: see BlockWorkspace::Resize.
+  if (grouped->rows() != block.rows() || grouped->cols() != layout.no) grouped->resize(block.rows(), layout.no);
   for (size_t q = 0; q < derivatives.size(); ++q) {
     Eigen::MatrixXcd& d = (*out)[q];
     const auto& entries = derivatives[q].entries;
@@ -540,24 +541,30 @@ void FrfEvaluator::EvaluateModal(const Eigen::VectorXd& omega_rad_s, int power,
 
 void FrfEvaluator::BlockWorkspace::Resize(Eigen::Index block_size, int cols, bool real, Eigen::Index num_real_rows,
                                           int num_complex) {
-  // Rows only grow (the code uses the top rows of a block); columns are exact (they enter products).
-  auto fit = [](auto& m, Eigen::Index rows, Eigen::Index columns) {
-    if (m.cols() != columns || m.rows() < rows) m.resize(std::max(rows, m.cols() == columns ? m.rows() : 0), columns);
+  // Exact sizes, set by the call alone (the block size and the layout), never by what the thread
+  // computed before. Where a column starts depends on the matrix's height, and a vectorised loop
+  // over a column that does not start on a vector boundary takes its leading elements apart, and they
+  // round differently (FrfEvaluator.ResultsDoNotDependOnWhatTheThreadComputedBefore fails with
+  // workspaces that only grow). A workspace grown by an earlier call would make a block's numbers
+  // depend on the thread that computes it, and a fit's result on the thread count and the machine's
+  // load. Within a fit the sizes repeat from call to call, so nothing is reallocated.
+  auto shape = [](auto& m, Eigen::Index rows, Eigen::Index columns) {
+    if (m.rows() != rows || m.cols() != columns) m.resize(rows, columns);
   };
-  auto grow = [](auto& a, Eigen::Index n) {
-    if (a.size() < n) a.resize(n);
+  auto length = [](auto& a, Eigen::Index n) {
+    if (a.size() != n) a.resize(n);
   };
-  fit(block, block_size, cols);
-  grow(prefactor, block_size);
-  grow(factor, block_size);
-  grow(scratch1, block_size);
-  grow(scratch2, block_size);
-  grow(scratch3, block_size);
+  shape(block, block_size, cols);
+  length(prefactor, block_size);
+  length(factor, block_size);
+  length(scratch1, block_size);
+  length(scratch2, block_size);
+  length(scratch3, block_size);
   if (real) {
-    fit(coef_real, 2 * block_size, num_real_rows);
-    fit(block_real, 2 * block_size, cols);
+    shape(coef_real, 2 * block_size, num_real_rows);
+    shape(block_real, 2 * block_size, cols);
   } else {
-    fit(coef_complex, block_size, num_complex);
+    shape(coef_complex, block_size, num_complex);
   }
 }
 
