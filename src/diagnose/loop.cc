@@ -519,7 +519,7 @@ DiagnoseOptions LoopDiagnoseOptions(const LoopOptions& options, const model::Mod
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,
-                                         std::vector<LoopStep>* history) {
+                                         std::vector<LoopStep>* history, bool mass_effects_only) {
   std::vector<std::string> moved;
   std::vector<std::string> keys;  // the effects the loop added, as they are now
   for (size_t k = as_given.effects.size(); k < current->effects.size(); ++k) keys.push_back(Key(current->effects[k]));
@@ -532,6 +532,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     const model::Effect effect = *it;
     const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
     if (definition.measured_side_only || model::EffectLocations(*current, effect.name).size() < 2) continue;
+    if (mass_effects_only && !definition.starts_in_place) continue;
     std::vector<model::Effect> others = current->effects;
     others.erase(others.begin() + static_cast<long>(k));
     model::ModelSpec without = *current;
@@ -1191,8 +1192,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   };
   auto finish = [&] {
     merge();
-    if (current.effects.size() > spec.effects.size() && !done(summary.history.back().error)) {
-      const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history);
+    // Above the rounds' threshold every added effect is sought again; near the floor the mass effects
+    // (LoopOptions::relocate_above_times_floor).
+    const double times = TimesFloor(summary.history.back().error, floor);
+    if (current.effects.size() > spec.effects.size() &&
+        !(times <= std::min(options.relocate_above_times_floor, options.rounds_above_times_floor))) {
+      const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current,
+                                                             &summary.history, done(summary.history.back().error));
       for (const std::string& change : moved) say("moved " + change);
       if (!moved.empty()) {
         say("after the moves: error " + std::to_string(summary.history.back().error));

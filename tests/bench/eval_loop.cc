@@ -18,8 +18,8 @@
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
-//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--hiding NAME] [--draws first|own]
-//                  [--verbose 1|2]
+//                  [--outside-kinds k1,k2,..] [--rounds-above X] [--relocate-above X] [--hiding NAME]
+//                  [--draws first|own] [--verbose 1|2]
 //   --outside-kinds: the out-of-catalogue kinds taken in turn (default plate-bending,plate-breathing,cable);
 //   --verbose 2 also prints the last diagnosis' best candidate of every effect and location (16 at most);
 //   --effects a,b tries only these effects of the catalogue;
@@ -59,6 +59,8 @@ compare::ComparisonSpace g_space = compare::ComparisonSpace::kCompliance;
 int g_max_rounds = diagnose::LoopOptions{}.max_rounds;
 // A round runs above this many times the floor (--rounds-above; default LoopOptions').
 double g_rounds_above = diagnose::LoopOptions{}.rounds_above_times_floor;
+// The relocation step runs above this many times the floor (--relocate-above; default LoopOptions').
+double g_relocate_above = diagnose::LoopOptions{}.relocate_above_times_floor;
 // Effects tried (--effects a,b; empty: the whole catalogue).
 std::vector<std::string> g_effects;
 // Only the drawn cases that hide this effect are run and counted (--hiding NAME; empty: every case).
@@ -110,6 +112,7 @@ std::optional<Outcome> RunCase(const model::ModelSpec& nominal, uint64_t seed, i
   loop_options.diagnose.comparison.space = g_space;
   loop_options.max_rounds = g_max_rounds;
   loop_options.rounds_above_times_floor = g_rounds_above;
+  loop_options.relocate_above_times_floor = g_relocate_above;
   loop_options.diagnose.effects = g_effects;
   if (verbose) {
     // Each line with the seconds since the case started (the diagnosis' own lines count from its start).
@@ -285,7 +288,7 @@ int main(int argc, char** argv) {
     static const std::set<std::string> known = {"--cases",         "--two-effects", "--outside",    "--outside-kinds",
                                                 "--three-effects", "--effect-free", "--first-seed", "--verbose",
                                                 "--effects",       "--max-rounds",  "--space",      "--rounds-above",
-                                                "--hiding",        "--draws"};
+                                                "--hiding",        "--draws",       "--relocate-above"};
     if (!known.count(option) || i + 1 >= argc) {
       std::fprintf(stderr, "eval_loop: %s '%s' (usage: see the head of tests/bench/eval_loop.cc)\n",
                    known.count(option) ? "no value after" : "unknown option", argv[i]);
@@ -311,6 +314,7 @@ int main(int argc, char** argv) {
     }
     else if (option == "--max-rounds") g_max_rounds = std::atoi(value);
     else if (option == "--rounds-above") g_rounds_above = std::atof(value);
+    else if (option == "--relocate-above") g_relocate_above = std::atof(value);
     else if (option == "--space") g_space = compare::ParseComparisonSpace(value, "--space");
   }
   if (outside > 0 && outside_kinds.empty()) {

@@ -917,9 +917,16 @@ TEST(RelocateEffects, MovesAnEffectToWhereTheDataPutIt) {
   std::vector<LoopStep> right_history = {{"fitted", "", right_error}};
   EXPECT_TRUE(RelocateEffects(nominal, c.measurement, comparison, options, options.diagnose, &right, &right_history).empty());
   EXPECT_EQ(right_history.size(), 1u);
-  // In ty: moved to rz.
+  // In ty: moved to rz; not sought again where only the mass effects are (the loop's step near the floor).
   model::ModelSpec current = fitted_at("ty");
   std::vector<LoopStep> history = {{"fitted", "", comparison.Error(current)}};
+  const std::vector<model::Effect> in_ty = current.effects;
+  EXPECT_TRUE(RelocateEffects(nominal, c.measurement, comparison, options, options.diagnose, &current, &history,
+                              /*mass_effects_only=*/true)
+                  .empty());
+  EXPECT_EQ(history.size(), 1u);
+  EXPECT_TRUE(current.effects == in_ty);
+  EXPECT_EQ(comparison.Error(current), history.front().error);
   const auto moved = RelocateEffects(nominal, c.measurement, comparison, options, options.diagnose, &current, &history);
   std::cout << "in rz " << right_error / floor << "x the floor; in ty " << history.front().error / floor << "x, moved "
             << history.back().error / floor << "x\n";
