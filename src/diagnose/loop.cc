@@ -1204,6 +1204,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
         say("after the moves: error " + std::to_string(summary.history.back().error));
         // An effect added to make up for the misplaced one may not be needed beside it in its place.
         drop_unneeded(current.effects.back());
+        // And the merge again beside the moved effect, as after a rigid limit (below): 82164 of
+        // eval_loop, whose extra body the step near the floor takes to its payload
+        // (Loop.MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit).
+        merge();
       }
       summary.effects_added = EffectTexts(current.effects);
     }
