@@ -532,7 +532,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
     const model::Effect effect = *it;
     const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
     if (definition.measured_side_only || model::EffectLocations(*current, effect.name).size() < 2) continue;
-    if (mass_effects_only && !definition.starts_in_place) continue;
+    if (mass_effects_only && !definition.adds_mass) continue;
     std::vector<model::Effect> others = current->effects;
     others.erase(others.begin() + static_cast<long>(k));
     model::ModelSpec without = *current;
@@ -1194,11 +1194,11 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     merge();
     // Above the rounds' threshold every added effect is sought again; near the floor the mass effects
     // (LoopOptions::relocate_above_times_floor).
-    const double times = TimesFloor(summary.history.back().error, floor);
+    const double error = summary.history.back().error;
     if (current.effects.size() > spec.effects.size() &&
-        !(times <= std::min(options.relocate_above_times_floor, options.rounds_above_times_floor))) {
-      const std::vector<std::string> moved = RelocateEffects(spec, measurement, comparison, options, d, &current,
-                                                             &summary.history, done(summary.history.back().error));
+        !(TimesFloor(error, floor) <= std::min(options.relocate_above_times_floor, options.rounds_above_times_floor))) {
+      const std::vector<std::string> moved =
+          RelocateEffects(spec, measurement, comparison, options, d, &current, &summary.history, done(error));
       for (const std::string& change : moved) say("moved " + change);
       if (!moved.empty()) {
         say("after the moves: error " + std::to_string(summary.history.back().error));

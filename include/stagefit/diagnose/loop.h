@@ -43,7 +43,7 @@ struct LoopOptions {
   /// that ended at 1.05-1.10x ran that round and still added nothing.
   double rounds_above_times_floor = 1.06;
   /// The relocation step (RelocateEffects()) runs after the rounds above rounds_above_times_floor,
-  /// and for a payload or an extra body alone (EffectDefinition::starts_in_place) from this many times
+  /// and for a payload or an extra body alone (model::EffectDefinition::adds_mass) from this many times
   /// the noise floor up to it. Near the floor a mass effect can stand for the one in the data: a body
   /// whose local mode lies just above the band reads in it as a payload, a body on the next joint moves
   /// nearly as the body does. Of the 128 two-effect loops of sets 82920-83086, 23 ended between 1.035x
@@ -213,9 +213,9 @@ DiagnoseOptions LoopDiagnoseOptions(const LoopOptions& options, const model::Mod
 /// start in its place"; 82343: a payload taken for a body with a joint far stiffer than the band,
 /// 2.43x -> 1.01x as its rigid limit). Returns "<effect>@<from> -> <effect>@<to>", and "<effect>@<location> ->
 /// <effect>@<location> (started again)" for a start in place of the same kind.
-/// With `mass_effects_only`, only the added effects of kinds with other starts in their place
-/// (model::EffectDefinition::starts_in_place: a payload, an extra body) are sought again: the loop's
-/// step near the floor (LoopOptions::relocate_above_times_floor).
+/// With `mass_effects_only`, only the added effects that add mass (model::EffectDefinition::adds_mass:
+/// a payload, an extra body) are sought again: the loop's step near the floor
+/// (LoopOptions::relocate_above_times_floor).
 std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const measurement::FrfData& measurement,
                                          const compare::Comparison& comparison, const LoopOptions& options,
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,
