@@ -587,6 +587,7 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   std::vector<Try> tries;
   std::vector<Try> scan_starts;  // refined without screening (ScanServoStiffness, ScanCouplingStiffness)
   std::vector<model::Effect> couplings;  // scanned after the loop below
+  std::vector<model::Effect> servos;     // profiled near the floor (ServoProfileStarts)
   auto add_try = [&](const model::Effect& e, bool short_steps = false) {
     tries.push_back({e, {}, {}, short_steps});
     if (model::FindEffectDefinition(e.name).adds_mass) {
@@ -700,6 +701,11 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
         scanned.parameters["k"] = *k;
         scan_starts.push_back({scanned, as_given, {}});
       }
+      // The profile's grid about the catalogue's k on the model as given: on the fitted baseline the
+      // joint's typical stiffness moves with the round (83132's ry, 1.2e8 as given, 7.8e8 in round 2).
+      model::Effect profiled = e;
+      profiled.parameters["k"] = model::FindEffectDefinition(e.name).defaults(spec_as_given, e.location).at("k");
+      servos.push_back(profiled);
     } else {
       add_try(e);
       // A rigid mass also with short first steps: the long ones threw 41000's payload (4.3 kg, 54 mm
@@ -843,6 +849,44 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     return scored;
   };
+  // Near the floor, the profile of every servo's k on the baseline (kServoProfileZeta, header); the
+  // location whose profile goes lowest is refined from its lowest minima whatever its screening. Far
+  // from the floor the scan on the model as given stands for it (ScanServoStiffness).
+  if (!far_from_floor && !servos.empty()) {
+    const int powers = kServoProfileLastPower - kServoProfileFirstPower + 1;
+    std::vector<double> errors(servos.size() * static_cast<size_t>(powers), std::numeric_limits<double>::infinity());
+    std::vector<EffectFit> fits(errors.size());
+    for_each_candidate(errors.size(), [&](size_t i) {
+      model::Effect e = servos[i / static_cast<size_t>(powers)];
+      e.parameters["k"] *= std::pow(2.0, kServoProfileFirstPower + static_cast<int>(i % static_cast<size_t>(powers)));
+      e.parameters["zeta"] = kServoProfileZeta;
+      EffectFitOptions fit_options;
+      fit_options.max_iterations = kServoProfileIterations;
+      fit_options.held = {"k"};
+      fit_options.initial_trust_region_radius = kPolishTrustRegionRadius;
+      try {
+        fits[i] = FitEffect(summary.baseline, screen, e, screening_params, fit_options);
+        if (fits[i].summary.status != fit::FitStatus::kFailed && std::isfinite(fits[i].summary.final_error)) {
+          errors[i] = fits[i].summary.final_error;
+        }
+      } catch (const std::exception&) {
+      }
+    });
+    const size_t lowest = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
+    const size_t first = lowest - lowest % static_cast<size_t>(powers);
+    const std::vector<double> profile(errors.begin() + static_cast<long>(first), errors.begin() + static_cast<long>(first) + powers);
+    const double screen_baseline = screen.Error(summary.baseline);
+    if (std::isfinite(errors[lowest])) {
+      say(Format("profiles of %.0f servo stiffnesses: the lowest ", static_cast<double>(servos.size())) + servos[lowest / static_cast<size_t>(powers)].location +
+          Format(" at k %.3g, %.3f of the baseline", fits[lowest].effect.parameters.at("k"), errors[lowest] / screen_baseline));
+    }
+    for (size_t j : ServoProfileStarts(profile, screen_baseline, kServoProfileStarts)) {
+      const EffectFit& f = fits[first + j];
+      std::map<std::string, double> start;
+      for (const auto& p : f.summary.parameters) start[p.name] = p.value;
+      scan_starts.push_back({f.effect, start, {}, true});
+    }
+  }
   if (screening_comparison || thinned_comparison) {
     say(Format("screening %.0f candidates on %.0f of the %.0f frequencies", static_cast<double>(tries.size()),
                screen.num_frequencies(), comparison.num_frequencies()));
@@ -1355,6 +1399,19 @@ std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, 
   }
   if (!(best->error <= (1 - kServoScanMinDrop) * error)) return std::nullopt;
   return best->at;
+}
+
+std::vector<size_t> ServoProfileStarts(const std::vector<double>& errors, double baseline_error, size_t max_starts) {
+  std::vector<size_t> minima;
+  for (size_t i = 0; i < errors.size(); ++i) {
+    const bool below_left = i == 0 || errors[i] <= errors[i - 1];
+    const bool below_right = i + 1 == errors.size() || errors[i] <= errors[i + 1];
+    if (std::isfinite(errors[i]) && below_left && below_right) minima.push_back(i);
+  }
+  std::sort(minima.begin(), minima.end(), [&](size_t a, size_t b) { return errors[a] < errors[b]; });
+  if (minima.empty() || !(errors[minima[0]] <= (1 - kServoScanMinDrop) * baseline_error)) return {};
+  if (minima.size() > max_starts) minima.resize(max_starts);
+  return minima;
 }
 
 std::optional<double> ScanRockingHz(const compare::Comparison& comparison, const DiagnoseSummary& summary,

@@ -355,6 +355,21 @@ TEST(BandScanPick, TakesTheDeepestDipInsideTheBandWhenTheLowestIsAtItsEnd) {
   EXPECT_EQ(BandScanPick({}), std::nullopt);
 }
 
+// A servo's profile (ServoProfileStarts) gives its lowest local minima, the lowest first, when that one
+// lies kServoScanMinDrop below the baseline. The profile is 83129's of ty.Dy (errors over the baseline's,
+// k from 1/16 to 4 times the catalogue's): the lowest minimum at 4e8 (index 5), the next at 1e8 (3).
+TEST(ServoProfileStarts, TakesTheLowestMinimaWhenTheLowestIsBelowTheBaseline) {
+  const std::vector<double> profile = {2.149, 1.773, 1.415, 0.971, 0.978, 0.943, 0.967};
+  EXPECT_EQ(ServoProfileStarts(profile, 1.0, 2), (std::vector<size_t>{5, 3}));
+  EXPECT_EQ(ServoProfileStarts(profile, 1.0, 1), (std::vector<size_t>{5}));
+  EXPECT_EQ(ServoProfileStarts(profile, 0.96, 2), (std::vector<size_t>{}));  // 0.943 is not 3 % below 0.96
+  EXPECT_EQ(ServoProfileStarts({3.0, 2.0, 1.0}, 2.0, 2), (std::vector<size_t>{2}));  // a minimum at the grid's end
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(ServoProfileStarts({inf, 0.9, inf, 0.8}, 1.0, 2), (std::vector<size_t>{3, 1}));  // failed fits are no minima
+  EXPECT_EQ(ServoProfileStarts({inf, inf}, 1.0, 2), (std::vector<size_t>{}));
+  EXPECT_EQ(ServoProfileStarts({}, 1.0, 2), (std::vector<size_t>{}));
+}
+
 // An extra body whose band scan is lowest at the band's end is started at the scan's dip (BandScanPick).
 // Seed 82366 of eval_loop (a 2.9 kg body on the hexapod with its local mode at 91 Hz, and a weak servo
 // of ty.Dy; 600 Hz band, 444 points): from the first fit (7.15x the floor) the loop's first round added
