@@ -389,9 +389,11 @@ std::optional<double> ScanServoStiffness(const compare::Comparison& comparison, 
 /// floor; no start of the servo came below the baseline, and the loop ended at 1.09x, 0.014 from the
 /// noise-free truth). The profile of k: at each k of a grid the model's parameters and the servo's
 /// damping ratio fitted with k held (kServoProfileIterations, short first steps, from
-/// kServoProfileZeta). Its minimum lies near the truth's k where the free fits do not: 83132 0.93 of
-/// the baseline at 6e7 (refined: 4.8e7, 1.01x the floor), 83122 (ty.Dy 6.9e7 beside a hexapod
-/// coupling) 0.89 at 1e8 (refined: 6.7e7).
+/// kServoProfileZeta). Its minimum lies near the truth's k where the free fits do not: on 83132's
+/// state after the first round 0.93 of the baseline at 6e7 (refined: 4.8e7, 1.01x the floor); on
+/// 83122's (ty.Dy 6.9e7 beside a hexapod coupling) 0.89 at 1e8 (refined: 6.7e7). In 83122's loop, after
+/// the refit in band stages, the profile was lowest at 4e8 for two rounds, and the servo was named in
+/// the fourth (1.01x, 0.0013 from the noise-free truth; unnamed at 1.09x before).
 /// The grid: the catalogue's k times 2^j, j from kServoProfileFirstPower to kServoProfileLastPower
 /// (above, the drive is as good as rigid: no profile of the four cases had its minimum there).
 inline constexpr int kServoProfileFirstPower = -4;
