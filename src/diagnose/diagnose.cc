@@ -849,16 +849,17 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     }
     return scored;
   };
+  const Scale screen_scale{static_cast<double>(screen.num_residuals()), screen.Error(summary.baseline)};
   // Near the floor, the profile of every servo's k on the baseline (kServoProfileZeta, header); the
   // location whose profile goes lowest is refined from its lowest minima whatever its screening. Far
   // from the floor the scan on the model as given stands for it (ScanServoStiffness).
   if (!far_from_floor && !servos.empty()) {
-    const int powers = kServoProfileLastPower - kServoProfileFirstPower + 1;
-    std::vector<double> errors(servos.size() * static_cast<size_t>(powers), std::numeric_limits<double>::infinity());
+    const size_t steps = static_cast<size_t>(kServoProfileLastPower - kServoProfileFirstPower + 1);
+    std::vector<double> errors(servos.size() * steps, std::numeric_limits<double>::infinity());
     std::vector<EffectFit> fits(errors.size());
     for_each_candidate(errors.size(), [&](size_t i) {
-      model::Effect e = servos[i / static_cast<size_t>(powers)];
-      e.parameters["k"] *= std::pow(2.0, kServoProfileFirstPower + static_cast<int>(i % static_cast<size_t>(powers)));
+      model::Effect e = servos[i / steps];
+      e.parameters["k"] *= std::pow(2.0, kServoProfileFirstPower + static_cast<int>(i % steps));
       e.parameters["zeta"] = kServoProfileZeta;
       EffectFitOptions fit_options;
       fit_options.max_iterations = kServoProfileIterations;
@@ -873,14 +874,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
       }
     });
     const size_t lowest = static_cast<size_t>(std::min_element(errors.begin(), errors.end()) - errors.begin());
-    const size_t first = lowest - lowest % static_cast<size_t>(powers);
-    const std::vector<double> profile(errors.begin() + static_cast<long>(first), errors.begin() + static_cast<long>(first) + powers);
-    const double screen_baseline = screen.Error(summary.baseline);
+    const size_t first = lowest - lowest % steps;  // the lowest location's profile
     if (std::isfinite(errors[lowest])) {
-      say(Format("profiles of %.0f servo stiffnesses: the lowest ", static_cast<double>(servos.size())) + servos[lowest / static_cast<size_t>(powers)].location +
-          Format(" at k %.3g, %.3f of the baseline", fits[lowest].effect.parameters.at("k"), errors[lowest] / screen_baseline));
+      say(Format("profiles of %.0f servo stiffnesses: the lowest ", static_cast<double>(servos.size())) + servos[lowest / steps].location +
+          Format(" at k %.3g, %.3f of the baseline", fits[lowest].effect.parameters.at("k"), errors[lowest] / screen_scale.error_baseline));
     }
-    for (size_t j : ServoProfileStarts(profile, screen_baseline, kServoProfileStarts)) {
+    const std::vector<double> profile(errors.begin() + static_cast<long>(first), errors.begin() + static_cast<long>(first + steps));
+    for (size_t j : ServoProfileStarts(profile, screen_scale.error_baseline, kServoProfileStarts)) {
       const EffectFit& f = fits[first + j];
       std::map<std::string, double> start;
       for (const auto& p : f.summary.parameters) start[p.name] = p.value;
@@ -893,7 +893,6 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   } else {
     say(Format("screening %.0f candidates", static_cast<double>(tries.size())));
   }
-  const Scale screen_scale{static_cast<double>(screen.num_residuals()), screen.Error(summary.baseline)};
   std::vector<Candidate> screened = run(tries, options.screening_iterations, false, false, screen, screen_scale);
   SortByJudgedError(&screened);
   // Keep the best start per (effect, location, held parameters), then refine the most promising ones.

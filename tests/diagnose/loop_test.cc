@@ -96,6 +96,17 @@ model::ModelSpec StoredLoopState(const std::string& file) {
   return model::ReadModelFile(std::string(STAGEFIT_SOURCE_DIR) + "/tests/diagnose/data/" + file);
 }
 
+// The loop on case `c` resumed from the stored state `file` (StoredLoopState), whose effects must be
+// `resumed` ("<name>@<location>", in order), with `options` and its progress printed; its history too.
+void ResumeStoredLoop(const synthetic::HiddenEffectCase& c, LoopOptions options, const std::string& file,
+                      const std::vector<std::string>& resumed, LoopSummary* summary) {
+  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  options.resume_from = StoredLoopState(file);
+  ASSERT_EQ(Keys(options.resume_from->effects), resumed);
+  *summary = RunLoop(model::DefaultModelSpec(), c.measurement, options);
+  std::cout << summary->HistoryTable();
+}
+
 // An extra body on the hexapod with the mass and height of the case's hidden body `body_name` and the
 // joint stiffnesses k (translations) and kr (rotations): where the rigid-limit tests start its fit.
 model::Effect ExtraBodyOnTheHexapod(const synthetic::HiddenEffectCase& c, const std::string& body_name, double k, double kr) {
@@ -1348,12 +1359,10 @@ TEST(Loop, MergesTheCouplingsAnOffsetMakesAgainAfterARigidLimit) {
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"joint-offset@rz", "payload@hexapod"}));
   LoopOptions options = Options({"extra-body", "coupled-stiffness"});
   options.max_rounds = LoopOptions{}.max_rounds;
-  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  options.resume_from = StoredLoopState("loop_82164_after_rounds.toml");
-  ASSERT_EQ(Keys(options.resume_from->effects),
-            (std::vector<std::string>{"extra-body@hexapod", "coupled-stiffness@rz.Dx-Ry", "coupled-stiffness@rz.Dy-Rx"}));
-  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
-  std::cout << summary.HistoryTable();
+  LoopSummary summary;
+  ASSERT_NO_FATAL_FAILURE(ResumeStoredLoop(
+      c, options, "loop_82164_after_rounds.toml",
+      {"extra-body@hexapod", "coupled-stiffness@rz.Dx-Ry", "coupled-stiffness@rz.Dy-Rx"}, &summary));
   const auto step = [&](const std::string& action) {
     return std::find_if(summary.history.begin(), summary.history.end(), [&](const LoopStep& s) { return s.action == action; });
   };
@@ -1384,12 +1393,9 @@ TEST(Loop, FitsTheJointOffsetACouplingStandsFor) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 82136, synthetic::EvalLoopCaseOptions(2, 150, 619));
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry", "joint-offset@rz"}));
-  LoopOptions options;
-  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  options.resume_from = StoredLoopState("loop_82136_after_round_1.toml");
-  ASSERT_EQ(Keys(options.resume_from->effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry"}));
-  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
-  std::cout << summary.HistoryTable();
+  LoopSummary summary;
+  ASSERT_NO_FATAL_FAILURE(
+      ResumeStoredLoop(c, LoopOptions{}, "loop_82136_after_round_1.toml", {"coupled-stiffness@hexapod.Dx-Ry"}, &summary));
   ASSERT_EQ(Keys(summary.final_model.effects), (std::vector<std::string>{"coupled-stiffness@hexapod.Dx-Ry", "joint-offset@rz"}));
   const double dz = c.truth.joints[model::FindJoint(c.truth, "rz")].origin_W.z() - nominal.joints[model::FindJoint(nominal, "rz")].origin_W.z();
   EXPECT_NEAR(summary.final_model.effects[1].parameters.at("dz"), dz, 0.01);
@@ -1410,12 +1416,8 @@ TEST(Loop, NamesAWeakServoBesideADelayFromTheProfileOfItsStiffness) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   const auto c = synthetic::MakeHiddenEffectCase(nominal, 83132, synthetic::EvalLoopCaseOptions(2, 600, 720));
   ASSERT_EQ(Keys(c.effects), (std::vector<std::string>{"servo-stiffness@ry.Ry", "delay@acquisition"}));
-  LoopOptions options;
-  options.progress = [](const std::string& line) { std::cout << line << std::endl; };
-  options.resume_from = StoredLoopState("loop_83132_after_round_1.toml");
-  ASSERT_EQ(Keys(options.resume_from->effects), (std::vector<std::string>{"delay@acquisition"}));
-  const LoopSummary summary = RunLoop(nominal, c.measurement, options);
-  std::cout << summary.HistoryTable();
+  LoopSummary summary;
+  ASSERT_NO_FATAL_FAILURE(ResumeStoredLoop(c, LoopOptions{}, "loop_83132_after_round_1.toml", {"delay@acquisition"}, &summary));
   ASSERT_EQ(Keys(summary.final_model.effects), (std::vector<std::string>{"delay@acquisition", "servo-stiffness@ry.Ry"}));
   const double truth_k = c.truth.joints[model::FindJoint(c.truth, "ry")].stiffness[4];
   EXPECT_NEAR(std::log(summary.final_model.effects[1].parameters.at("k") / truth_k), 0.0, std::log(1.2));
