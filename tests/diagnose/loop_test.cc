@@ -792,6 +792,45 @@ TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
   EXPECT_EQ(kept_history.size(), 1u);
 }
 
+// The check on the search grid first (ClearlyEarnsOnSearchGrid) on the case above, its 300 frequencies
+// thinned to 150: the offset, which the coupling's model refitted without it stays far above, clearly
+// earns its place there; the coupling, which the offset makes unnecessary, does not, and is left to the
+// refit on all frequencies. DropUnneededEffects decides both as it does without the thinning.
+TEST(DropUnneededEffects, TellsAnEffectThatClearlyEarnsItsPlaceOnTheSearchGrid) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});
+  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+  const model::Effect coupling = model::ParseEffect("coupled-stiffness@ry.Dx-Dy", nominal);
+  const model::Effect offset = model::ParseEffect("joint-offset@hexapod:dz=-80 mm", nominal);
+  EffectFitOptions eo;
+  eo.max_iterations = 50;
+  eo.probe_basins = true;
+  eo.initial_trust_region_radius = 1.0;
+  const EffectsFit both = FitEffects(nominal, comparison, {coupling, offset}, {"*.k.*"}, eo);
+  const double both_error = comparison.Error(both.spec);
+  ASSERT_LT(both_error, kDoneTimesFloor * comparison.CalcNoiseFloor().floor);
+
+  // Without the coupling (the offset left), and without the offset (the coupling left).
+  LoopOptions options;
+  options.diagnose.max_search_frequencies = 150;
+  const auto search = ThinnedComparison(comparison, options.diagnose.max_search_frequencies);
+  ASSERT_TRUE(search);
+  ASSERT_EQ(search->num_frequencies(), 150);
+  const double n = comparison.num_residuals();
+  auto num_parameters = [](const model::Effect& e) { return static_cast<int>(model::FindEffectDefinition(e.name).parameters.size()); };
+  EXPECT_TRUE(ClearlyEarnsOnSearchGrid(nominal, *search, options, both.spec, {both.effects[0]}, num_parameters(both.effects[1]), n));
+  EXPECT_FALSE(ClearlyEarnsOnSearchGrid(nominal, *search, options, both.spec, {both.effects[1]}, num_parameters(both.effects[0]), n));
+
+  model::ModelSpec current = both.spec;
+  std::vector<LoopStep> history = {{"both", "", both_error}};
+  EXPECT_EQ(DropUnneededEffects(nominal, comparison, options, both.effects[1], &current, &history),
+            std::vector<std::string>{"coupled-stiffness@ry.Dx-Dy"});
+  model::ModelSpec kept = both.spec;
+  std::vector<LoopStep> kept_history = {{"both", "", both_error}};
+  EXPECT_TRUE(DropUnneededEffects(nominal, comparison, options, both.effects[0], &kept, &kept_history).empty());
+  EXPECT_EQ(kept.effects.size(), 2u);
+}
+
 // Near the floor an effect cannot lower the error by the 5 % share: it is kept when the model is at the
 // floor with it (within LoopOptions::rounds_above_times_floor) and would need another round without it.
 // Seed 15011 of eval_loop (a ty.Dy servo of 1.28e9 N/m and a4y turned 20 degrees, 5-150 Hz, 700
