@@ -313,14 +313,15 @@ std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary) {
   return StandingOut(summary.final_channels);
 }
 
-bool ClearlyEarnsOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
-                              const model::ModelSpec& current, const std::vector<model::Effect>& without, int num_parameters,
-                              double n) {
-  const double with_error = search.Error(current);
-  const double trial_error = RefitWithEffects(as_given, search, options, current, without).second;
-  if (!std::isfinite(trial_error) || !std::isfinite(with_error)) return false;
-  return trial_error > kDropScreenMargin * with_error / (1 - options.diagnose.min_relative_improvement) &&
-         DeltaBic(with_error, trial_error, num_parameters, n) < 0;
+double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
+                              const model::ModelSpec& state, const std::vector<model::Effect>& effects,
+                              const model::ModelSpec& reference) {
+  const double reference_error = search.Error(reference);
+  const double refit_error = RefitWithEffects(as_given, search, options, state, effects).second;
+  if (!std::isfinite(refit_error) || !std::isfinite(reference_error) || !(reference_error > 0)) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return refit_error / reference_error;
 }
 
 std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
@@ -346,11 +347,14 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     const double with_error = history->back().error;
     const int num_parameters = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size());
     // On more frequencies than a diagnosis searches on, refitted there first: an effect the model
-    // without it stays kDropScreenMargin times further from than dropping asks of it earns its place
-    // without the refit on all frequencies (ClearlyEarnsOnSearchGrid).
-    if (thinned && ClearlyEarnsOnSearchGrid(as_given, *thinned, options, *current, without, num_parameters, n)) {
-      ++k;
-      continue;
+    // without it stays kSearchGridMargin times further from than dropping asks of it earns its place
+    // without the refit on all frequencies (RefitRatioOnSearchGrid).
+    if (thinned) {
+      const double ratio = RefitRatioOnSearchGrid(as_given, *thinned, options, *current, without, *current);
+      if (ratio > kSearchGridMargin / (1 - options.diagnose.min_relative_improvement) && DeltaBic(1.0, ratio, num_parameters, n) < 0) {
+        ++k;
+        continue;
+      }
     }
     // Refitted without it from two starts, the better kept: the loop's state, and the model as given.
     auto [trial, trial_error] = RefitWithEffects(as_given, comparison, options, *current, without);
@@ -539,6 +543,13 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,
                                          std::vector<LoopStep>* history, bool mass_effects_only) {
   std::vector<std::string> moved;
+  // A refit that cannot be taken is not run on all frequencies: on more of them than a diagnosis
+  // searches on, each is refitted on the search grid first, and left there when it stays
+  // kSearchGridMargin times above the model the loop holds (a move needs it 1 % below).
+  const std::optional<compare::Comparison> thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies);
+  auto far_above = [&](const model::ModelSpec& state, const std::vector<model::Effect>& effects) {
+    return thinned && RefitRatioOnSearchGrid(as_given, *thinned, options, state, effects, *current) > kSearchGridMargin;
+  };
   std::vector<std::string> keys;  // the effects the loop added, as they are now
   for (size_t k = as_given.effects.size(); k < current->effects.size(); ++k) keys.push_back(Key(current->effects[k]));
   for (const std::string& key : keys) {
@@ -577,8 +588,10 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
       const DiagnoseSummary diagnosis = Diagnose(without, measurement, only);
       if (diagnosis.effect_found && Key(diagnosis.candidates[0].effect) != key) {
         const model::ModelSpec with = ApplyCandidate(diagnosis, diagnosis.candidates[0]);
-        auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, with, with.effects);
-        consider(std::move(refitted), refitted_error);
+        if (!far_above(with, with.effects)) {
+          auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, with, with.effects);
+          consider(std::move(refitted), refitted_error);
+        }
         consider(with, comparison.Error(with));
       }
     } catch (const std::exception&) {
@@ -597,7 +610,12 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
         std::vector<model::Effect> in_place = others;
         in_place.push_back(start);
         try {
-          if (diagnose.progress) diagnose.progress("refit with " + start.ToString() + " in the place of " + key);
+          const bool far = far_above(without, in_place);
+          if (diagnose.progress) {
+            diagnose.progress("refit with " + start.ToString() + " in the place of " + key +
+                              (far ? Format(" (on the search grid: more than %.1f x the model held)", kSearchGridMargin) : ""));
+          }
+          if (far) continue;
           auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, without, in_place);
           consider(std::move(refitted), refitted_error);
         } catch (const std::exception&) {

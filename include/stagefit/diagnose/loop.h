@@ -170,24 +170,25 @@ std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary);
 /// Runs the loop on `spec` against `measurement`. Throws as diagnose::Diagnose() does.
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options = {});
 
-/// DropUnneededEffects on more frequencies than DiagnoseOptions::max_search_frequencies: the model
-/// without an effect is refitted on the search grid first, and when its error there is more than this
-/// many times what dropping the effect asks of it, the effect earns its place without the refit on all
-/// frequencies (9-12 s of a loop on 1015 frequencies, seed 83140 of eval_loop). The
-/// thinned grid's error is the same model's on a subset of the frequencies: in four two-effect loops
-/// (83135-83140, 493-1015 frequencies) the final model's errors on the two grids were within 2 % of
-/// each other, and the models without the first effect stood 11-46 times above them.
-constexpr double kDropScreenMargin = 1.5;
+/// DropUnneededEffects and RelocateEffects on more frequencies than
+/// DiagnoseOptions::max_search_frequencies: each refit is run on the search grid first
+/// (RefitRatioOnSearchGrid), and not on all frequencies when the result there is decided by more than
+/// this factor: an effect whose model without it stays this many times further above than dropping
+/// it asks (1 / (1 - min_relative_improvement) of the model with it) earns its place; a relocation
+/// this many times above the model the loop holds is not taken (it needs 1 % below). The refit on all
+/// frequencies took 9-12 s of seed 83140 of eval_loop (1015 frequencies). The thinned grid's error is
+/// the same model's on a subset of the frequencies: in four two-effect loops (83135-83140, 493-1015
+/// frequencies) the final model's errors on the two grids were within 2 % of each other, and the models
+/// without the first effect stood 11-46 times above them.
+constexpr double kSearchGridMargin = 1.5;
 
-/// True when `current` without an effect (`without`: the effects left), refitted on the thinned grid
-/// `search` from two starts as DropUnneededEffects refits it, stays above kDropScreenMargin times the
-/// error that dropping the effect asks of it there (1 / (1 - min_relative_improvement) times
-/// `current`'s own error on `search`), and delta BIC for the effect's `num_parameters` on the `n`
-/// residuals of all frequencies supports it. False when the refit fails: the decision is left to the
-/// refit on all frequencies.
-bool ClearlyEarnsOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
-                              const model::ModelSpec& current, const std::vector<model::Effect>& without, int num_parameters,
-                              double n);
+/// `state` with `effects` (its parameters as they are) refitted on `search` (the loop's comparison
+/// thinned to DiagnoseOptions::max_search_frequencies) from two starts as the loop refits it (the
+/// state, and the model as given with `effects`; the better kept), its error there over `reference`'s
+/// error there. NaN when either cannot be evaluated: the decision is left to the refit on all frequencies.
+double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
+                              const model::ModelSpec& state, const std::vector<model::Effect>& effects,
+                              const model::ModelSpec& reference);
 
 /// The loop's check after each round that adds an effect, and after the turned-channel step when it
 /// keeps a correction: every effect the loop added before `newest`
