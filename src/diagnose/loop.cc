@@ -543,13 +543,6 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
                                          const DiagnoseOptions& diagnose, model::ModelSpec* current,
                                          std::vector<LoopStep>* history, bool mass_effects_only) {
   std::vector<std::string> moved;
-  // A refit that cannot be taken is not run on all frequencies: on more of them than a diagnosis
-  // searches on, each is refitted on the search grid first, and left there when it stays
-  // kSearchGridMargin times above the model the loop holds (a move needs it 1 % below).
-  const std::optional<compare::Comparison> thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies);
-  auto far_above = [&](const model::ModelSpec& state, const std::vector<model::Effect>& effects) {
-    return thinned && RefitRatioOnSearchGrid(as_given, *thinned, options, state, effects, *current) > kSearchGridMargin;
-  };
   std::vector<std::string> keys;  // the effects the loop added, as they are now
   for (size_t k = as_given.effects.size(); k < current->effects.size(); ++k) keys.push_back(Key(current->effects[k]));
   for (const std::string& key : keys) {
@@ -588,10 +581,8 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
       const DiagnoseSummary diagnosis = Diagnose(without, measurement, only);
       if (diagnosis.effect_found && Key(diagnosis.candidates[0].effect) != key) {
         const model::ModelSpec with = ApplyCandidate(diagnosis, diagnosis.candidates[0]);
-        if (!far_above(with, with.effects)) {
-          auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, with, with.effects);
-          consider(std::move(refitted), refitted_error);
-        }
+        auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, with, with.effects);
+        consider(std::move(refitted), refitted_error);
         consider(with, comparison.Error(with));
       }
     } catch (const std::exception&) {
@@ -610,12 +601,7 @@ std::vector<std::string> RelocateEffects(const model::ModelSpec& as_given, const
         std::vector<model::Effect> in_place = others;
         in_place.push_back(start);
         try {
-          const bool far = far_above(without, in_place);
-          if (diagnose.progress) {
-            diagnose.progress("refit with " + start.ToString() + " in the place of " + key +
-                              (far ? Format(" (on the search grid: more than %.1f x the model held)", kSearchGridMargin) : ""));
-          }
-          if (far) continue;
+          if (diagnose.progress) diagnose.progress("refit with " + start.ToString() + " in the place of " + key);
           auto [refitted, refitted_error] = RefitWithEffects(as_given, comparison, options, without, in_place);
           consider(std::move(refitted), refitted_error);
         } catch (const std::exception&) {

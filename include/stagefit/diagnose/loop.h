@@ -170,13 +170,11 @@ std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary);
 /// Runs the loop on `spec` against `measurement`. Throws as diagnose::Diagnose() does.
 LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& measurement, const LoopOptions& options = {});
 
-/// DropUnneededEffects and RelocateEffects on more frequencies than
-/// DiagnoseOptions::max_search_frequencies: each refit is run on the search grid first
-/// (RefitRatioOnSearchGrid), and not on all frequencies when the result there is decided by more than
-/// this factor: an effect whose model without it stays this many times further above than dropping
-/// it asks (1 / (1 - min_relative_improvement) of the model with it) earns its place; a relocation
-/// this many times above the model the loop holds is not taken (it needs 1 % below). The refit on all
-/// frequencies took 9-12 s of seed 83140 of eval_loop (1015 frequencies). The thinned grid's error is
+/// DropUnneededEffects on more frequencies than DiagnoseOptions::max_search_frequencies: the model
+/// without an effect is refitted on the search grid first (RefitRatioOnSearchGrid), and when it stays
+/// more than this many times above what dropping the effect asks of it there (1 / (1 -
+/// min_relative_improvement) of the model with it), the effect earns its place without the refit on
+/// all frequencies (9-12 s of seed 83140 of eval_loop, 1015 frequencies). The thinned grid's error is
 /// the same model's on a subset of the frequencies: in four two-effect loops (83135-83140, 493-1015
 /// frequencies) the final model's errors on the two grids were within 2 % of each other, and the models
 /// without the first effect stood 11-46 times above them.
