@@ -756,19 +756,32 @@ TEST(KeepModelAfterHold, WithinOnePercentOrWhereTheLoopLooksNoFurther) {
 // offset, at the floor) is refitted without the coupling to within 5 % of its error, so the coupling
 // goes and the offset stays; checked the other way round (the coupling the newest), the offset earns
 // its place.
-TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
-  const model::ModelSpec nominal = model::DefaultModelSpec();
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});
-  ASSERT_EQ(c.effects.size(), 1u);
-  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "joint-offset@hexapod");
-  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
+// Seed 1017 (the hexapod's stiffness centre 84 mm low) and a model with a coupling in ry and the offset,
+// fitted together: the two tests below.
+struct CouplingAndOffset {
+  synthetic::HiddenEffectCase hidden;
+  compare::Comparison comparison;
+  EffectsFit both;  // effects[0] the coupling, effects[1] the offset
+};
+
+CouplingAndOffset FitCouplingAndOffset(const model::ModelSpec& nominal) {
+  synthetic::HiddenEffectCase c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});
+  compare::Comparison comparison = compare::Comparison::Create(nominal, c.measurement);
   const model::Effect coupling = model::ParseEffect("coupled-stiffness@ry.Dx-Dy", nominal);
   const model::Effect offset = model::ParseEffect("joint-offset@hexapod:dz=-80 mm", nominal);
   EffectFitOptions eo;
   eo.max_iterations = 50;
   eo.probe_basins = true;
   eo.initial_trust_region_radius = 1.0;
-  const EffectsFit both = FitEffects(nominal, comparison, {coupling, offset}, {"*.k.*"}, eo);
+  EffectsFit both = FitEffects(nominal, comparison, {coupling, offset}, {"*.k.*"}, eo);
+  return {std::move(c), std::move(comparison), std::move(both)};
+}
+
+TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const auto [c, comparison, both] = FitCouplingAndOffset(nominal);
+  ASSERT_EQ(c.effects.size(), 1u);
+  ASSERT_EQ(c.effects[0].name + "@" + c.effects[0].location, "joint-offset@hexapod");
   const double floor = comparison.CalcNoiseFloor().floor;
   const double both_error = comparison.Error(both.spec);
   ASSERT_LT(both_error, kDoneTimesFloor * floor) << both.effects[0].ToString() << " " << both.effects[1].ToString();
@@ -800,15 +813,7 @@ TEST(DropUnneededEffects, DropsAnEarlierEffectTheLaterOneMakesUnnecessary) {
 // decides both as it does without the thinning.
 TEST(DropUnneededEffects, RefitsOnTheSearchGridFirst) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
-  const auto c = synthetic::MakeHiddenEffectCase(nominal, 1017, {});
-  const auto comparison = compare::Comparison::Create(nominal, c.measurement);
-  const model::Effect coupling = model::ParseEffect("coupled-stiffness@ry.Dx-Dy", nominal);
-  const model::Effect offset = model::ParseEffect("joint-offset@hexapod:dz=-80 mm", nominal);
-  EffectFitOptions eo;
-  eo.max_iterations = 50;
-  eo.probe_basins = true;
-  eo.initial_trust_region_radius = 1.0;
-  const EffectsFit both = FitEffects(nominal, comparison, {coupling, offset}, {"*.k.*"}, eo);
+  const auto [c, comparison, both] = FitCouplingAndOffset(nominal);
   const double both_error = comparison.Error(both.spec);
   ASSERT_LT(both_error, kDoneTimesFloor * comparison.CalcNoiseFloor().floor);
 
