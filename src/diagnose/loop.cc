@@ -346,9 +346,9 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     without.erase(without.begin() + static_cast<long>(k));
     const double with_error = history->back().error;
     const int num_parameters = static_cast<int>(model::FindEffectDefinition(effect.name).parameters.size());
-    // On more frequencies than a diagnosis searches on, refitted there first: an effect the model
-    // without it stays kSearchGridMargin times further from than dropping asks of it earns its place
-    // without the refit on all frequencies (RefitRatioOnSearchGrid).
+    // On more frequencies than a diagnosis searches on, the model without it is refitted there first:
+    // when it stays kSearchGridMargin times above what dropping the effect asks, the effect earns its
+    // place without the refit on all frequencies (RefitRatioOnSearchGrid).
     if (thinned) {
       const double ratio = RefitRatioOnSearchGrid(as_given, *thinned, options, *current, without, *current);
       if (ratio > kSearchGridMargin / (1 - options.diagnose.min_relative_improvement) && DeltaBic(1.0, ratio, num_parameters, n) < 0) {

@@ -199,7 +199,9 @@ double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::C
 /// floor no effect lowers the error by 5 %): `current` becomes the model without it and a
 /// "drop" step with its error is appended to `history` (whose last step holds `current`'s error).
 /// A first round names what mimics the strongest effect best, a later one can name the truth beside it
-/// (docs/diagnose.md). Returns the "<effect>@<location>" of the dropped effects.
+/// (docs/diagnose.md). On more frequencies than DiagnoseOptions::max_search_frequencies the model
+/// without an effect is refitted on the search grid first (kSearchGridMargin). Returns the
+/// "<effect>@<location>" of the dropped effects.
 std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                              const LoopOptions& options, const model::Effect& newest,
                                              model::ModelSpec* current, std::vector<LoopStep>* history);
