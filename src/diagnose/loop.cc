@@ -314,10 +314,9 @@ std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary) {
 }
 
 double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
-                              const model::ModelSpec& state, const std::vector<model::Effect>& effects,
-                              const model::ModelSpec& reference) {
-  const double reference_error = search.Error(reference);
-  const double refit_error = RefitWithEffects(as_given, search, options, state, effects).second;
+                              const model::ModelSpec& current, const std::vector<model::Effect>& effects) {
+  const double reference_error = search.Error(current);
+  const double refit_error = RefitWithEffects(as_given, search, options, current, effects).second;
   if (!std::isfinite(refit_error) || !std::isfinite(reference_error) || !(reference_error > 0)) {
     return std::numeric_limits<double>::quiet_NaN();
   }
@@ -335,7 +334,10 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
   const compare::NoiseFloor floor = comparison.CalcNoiseFloor();
   const double round_threshold = floor.known && floor.floor > 0 ? options.rounds_above_times_floor * floor.floor
                                                                 : std::numeric_limits<double>::quiet_NaN();
-  const std::optional<compare::Comparison> thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies);
+  // Only when there is an effect to check (the loop calls this after every effect it adds).
+  const std::optional<compare::Comparison> thinned = current->effects.size() > first + 1
+                                                         ? ThinnedComparison(comparison, options.diagnose.max_search_frequencies)
+                                                         : std::nullopt;
   for (size_t k = first; k < current->effects.size() && current->effects.size() > first + 1;) {
     const model::Effect effect = current->effects[k];
     if (Key(effect) == newest_key) {
@@ -350,7 +352,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     // when it stays kSearchGridMargin times above what dropping the effect asks, the effect earns its
     // place without the refit on all frequencies (RefitRatioOnSearchGrid).
     if (thinned) {
-      const double ratio = RefitRatioOnSearchGrid(as_given, *thinned, options, *current, without, *current);
+      const double ratio = RefitRatioOnSearchGrid(as_given, *thinned, options, *current, without);
       if (ratio > kSearchGridMargin / (1 - options.diagnose.min_relative_improvement) && DeltaBic(1.0, ratio, num_parameters, n) < 0) {
         ++k;
         continue;

@@ -823,8 +823,8 @@ TEST(DropUnneededEffects, RefitsOnTheSearchGridFirst) {
   ASSERT_TRUE(search);
   ASSERT_EQ(search->num_frequencies(), 150);
   const double asked = 1 / (1 - options.diagnose.min_relative_improvement);  // what dropping an effect asks
-  const double without_offset = RefitRatioOnSearchGrid(nominal, *search, options, both.spec, {both.effects[0]}, both.spec);
-  const double without_coupling = RefitRatioOnSearchGrid(nominal, *search, options, both.spec, {both.effects[1]}, both.spec);
+  const double without_offset = RefitRatioOnSearchGrid(nominal, *search, options, both.spec, {both.effects[0]});
+  const double without_coupling = RefitRatioOnSearchGrid(nominal, *search, options, both.spec, {both.effects[1]});
   std::cout << "on the search grid, without the offset " << without_offset << ", without the coupling " << without_coupling
             << " times the model with both\n";
   EXPECT_GT(without_offset, kSearchGridMargin * asked);

@@ -180,13 +180,13 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
 /// without the first effect stood 11-46 times above them.
 constexpr double kSearchGridMargin = 1.5;
 
-/// `state` with `effects` (its parameters as they are) refitted on `search` (the loop's comparison
-/// thinned to DiagnoseOptions::max_search_frequencies) from two starts as the loop refits it (the
-/// state, and the model as given with `effects`; the better kept), its error there over `reference`'s
-/// error there. NaN when either cannot be evaluated: the decision is left to the refit on all frequencies.
+/// `current` with `effects` in place of its own (their parameters as they are) refitted on `search` (the
+/// loop's comparison thinned to DiagnoseOptions::max_search_frequencies) from two starts as the loop
+/// refits it (`current`'s state, and the model as given with `effects`; the better kept), its error
+/// there over `current`'s own error there. NaN when either cannot be evaluated: the decision is left to
+/// the refit on all frequencies.
 double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
-                              const model::ModelSpec& state, const std::vector<model::Effect>& effects,
-                              const model::ModelSpec& reference);
+                              const model::ModelSpec& current, const std::vector<model::Effect>& effects);
 
 /// The loop's check after each round that adds an effect, and after the turned-channel step when it
 /// keeps a correction: every effect the loop added before `newest`
