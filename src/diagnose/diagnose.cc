@@ -309,6 +309,10 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
                     local_hz, band_low_hz);
     }
   }
+  const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
+  if (definition.implausible) {
+    if (std::string why = definition.implausible(effect); !why.empty()) return why;
+  }
   const std::vector<ParameterAtBound> at_bounds = ParametersAtBounds(baseline, effect);
   if (at_bounds.empty()) return {};
   const ParameterAtBound& p = at_bounds[0];

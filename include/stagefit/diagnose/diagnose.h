@@ -160,7 +160,9 @@ inline double JudgedError(const Candidate& c) { return c.error_after / c.floor_r
 /// channel turned 34 degrees, its rx at the 0.6 rad bound, 12x the noise floor); or a body on a joint (extra-body) whose local mode sqrt(k/mass)
 /// lies below `band_low_hz`, the lowest compared frequency (0: not checked): in the band such a body
 /// stands still, so its fitted mass is not determined and its joint acts as a spring to the ground (a
-/// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz).
+/// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz);
+/// or what the effect's own catalogue entry finds absurd (model::EffectDefinition::implausible: a loss
+/// factor that leaves its joint undamped).
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0);
 
 /// The length and angle parameters of `effect` a fit sets that lie within 1 % of the bound of their

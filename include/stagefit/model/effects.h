@@ -43,6 +43,11 @@ struct EffectParameterRange {
 /// The range of a sensor-geometry correction's Euler angles, rad (about 34 degrees).
 inline constexpr double kMaxCorrectionTurn = 0.6;
 
+/// The smallest loss factor a fitted structural-damping effect may claim: the material loss of steel
+/// alone is about 1e-4 to 6e-4, and a joint's adds to it. Below it the effect leaves its joint undamped
+/// (EffectDefinition::implausible).
+inline constexpr double kMinPlausibleLossFactor = 1e-4;
+
 /// The radius of gyration of an extra body (effect extra-body), m: its rocking modes are at
 /// sqrt(kr / (mass r^2)).
 inline constexpr double kExtraBodyRadiusOfGyration = 0.05;
@@ -79,6 +84,10 @@ struct EffectDefinition {
   /// The effect adds mass to the stack (a payload, an extra body): its "mass" parameter is checked
   /// against the stack's mass before a diagnosis claims it.
   bool adds_mass = false;
+  /// Why the fitted effect is physically absurd in itself, in words for a user; empty when it is not
+  /// (a loss factor that leaves the joint undamped). Unset: only the checks every effect gets (a mass
+  /// beside the stack's, lengths and turns at their search bounds: diagnose::ImplausibleBecause).
+  std::function<std::string(const Effect&)> implausible;
   /// Only the measured side changes in compliance space (a channel's geometry): the comparison then
   /// re-projects the data without touching the model (the Jacobian route of fit/column_routes.h).
   bool measured_side_only = false;
