@@ -293,13 +293,13 @@ std::string ChannelWords(const std::vector<ChannelError>& channels) {
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
+  const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
   const auto mass = effect.parameters.find("mass");
-  if (model::FindEffectDefinition(effect.name).adds_mass && mass != effect.parameters.end() &&
-      mass->second > stack_kg) {
+  if (definition.adds_mass && mass != effect.parameters.end() && mass->second > stack_kg) {
     return Format("its fitted mass %.4g kg is more than the whole stack's %.4g kg", mass->second, stack_kg);
   }
   const auto k = effect.parameters.find("k");
-  if (model::FindEffectDefinition(effect.name).adds_mass && mass != effect.parameters.end() && k != effect.parameters.end() &&
+  if (definition.adds_mass && mass != effect.parameters.end() && k != effect.parameters.end() &&
       band_low_hz > 0 && mass->second > 0) {
     const double local_hz = std::sqrt(std::max(k->second, 0.0) / mass->second) / (2 * M_PI);
     if (local_hz < band_low_hz) {
@@ -309,7 +309,6 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
                     local_hz, band_low_hz);
     }
   }
-  const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
   if (definition.implausible) {
     if (std::string why = definition.implausible(effect); !why.empty()) return why;
   }

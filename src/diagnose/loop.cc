@@ -331,13 +331,12 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
   const std::string newest_key = Key(newest);
   const double n = comparison.num_residuals();
   const size_t first = as_given.effects.size();  // the effects of the model as given are the user's
+  // Nothing to check beside the newest (the loop calls this after every effect it adds).
+  if (current->effects.size() <= first + 1) return dropped;
   const compare::NoiseFloor floor = comparison.CalcNoiseFloor();
   const double round_threshold = floor.known && floor.floor > 0 ? options.rounds_above_times_floor * floor.floor
                                                                 : std::numeric_limits<double>::quiet_NaN();
-  // Only when there is an effect to check (the loop calls this after every effect it adds).
-  const std::optional<compare::Comparison> thinned = current->effects.size() > first + 1
-                                                         ? ThinnedComparison(comparison, options.diagnose.max_search_frequencies)
-                                                         : std::nullopt;
+  const std::optional<compare::Comparison> thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies);
   for (size_t k = first; k < current->effects.size() && current->effects.size() > first + 1;) {
     const model::Effect effect = current->effects[k];
     if (Key(effect) == newest_key) {
