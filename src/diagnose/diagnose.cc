@@ -14,6 +14,7 @@
 #include "stagefit/common/error.h"
 #include "stagefit/common/parallel.h"
 #include "stagefit/common/units.h"
+#include "stagefit/compare/parameter_probes.h"
 #include "stagefit/diagnose/effect_problem.h"
 #include "stagefit/fit/model_fit.h"
 #include "stagefit/kinematics/rigid_transform.h"
@@ -1295,14 +1296,25 @@ model::ModelSpec ApplyCandidate(const DiagnoseSummary& summary, const Candidate&
 std::vector<double> ScanErrors(const compare::Comparison& comparison, const std::vector<double>& grid,
                                const std::function<model::ModelSpec(double x)>& model_at) {
   std::vector<double> errors(grid.size(), std::numeric_limits<double>::infinity());
+  std::vector<std::optional<model::ModelSpec>> specs(grid.size());
   ParallelFor(static_cast<int>(grid.size()), [&](int k, int) {
     try {
-      const double error = comparison.Error(model_at(grid[static_cast<size_t>(k)]));
-      if (std::isfinite(error)) errors[static_cast<size_t>(k)] = error;
+      specs[static_cast<size_t>(k)] = model_at(grid[static_cast<size_t>(k)]);
     } catch (const std::exception&) {
       // A stiffness the model cannot take: left out of the scan.
     }
   });
+  // The models of a scan differ in one effect parameter: most of them only in a spring's or a
+  // coupling's terms, which one set-up of the grid's middle model serves (ErrorsOfStiffnessVariants).
+  std::vector<model::ModelSpec> built;
+  std::vector<size_t> index;
+  for (size_t k = 0; k < specs.size(); ++k) {
+    if (!specs[k]) continue;
+    built.push_back(std::move(*specs[k]));
+    index.push_back(k);
+  }
+  const std::vector<double> built_errors = compare::ErrorsOfStiffnessVariants(comparison, built);
+  for (size_t i = 0; i < index.size(); ++i) errors[index[i]] = built_errors[i];
   return errors;
 }
 

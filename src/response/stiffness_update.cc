@@ -68,8 +68,10 @@ StiffnessUpdate StiffnessUpdate::Create(const model::SecondOrderSystem& system, 
   const int nf = u.num_frequencies();
   const int na = u.no_ + nt;
   u.values_.resize(nf, u.no_ * u.ni_);
+  u.prefactor_.resize(nf);
   for (int f = 0; f < nf; ++f) {
     const Complex pre = std::pow(Complex(0.0, u.omega_rad_s_(f)), u.power_) * std::polar(1.0, -u.omega_rad_s_(f) * u.delay_s_);
+    u.prefactor_(f) = pre;
     for (int i = 0; i < u.ni_; ++i) {
       for (int o = 0; o < u.no_; ++o) u.values_(f, o + u.no_ * i) = pre * u.augmented_(o + na * i, f);
     }
@@ -94,6 +96,15 @@ bool StiffnessUpdate::Evaluate(const std::vector<DynamicStiffnessDerivative::Ent
   *out = values_;
   if (m == 0) return true;
   auto local = [&](int c) { return static_cast<int>(std::find(changed.begin(), changed.end(), c) - changed.begin()); };
+  // Each entry's place in D, found once for all frequencies.
+  struct Placed {
+    int a, b;
+    Complex stiffness;
+    double damping;
+  };
+  std::vector<Placed> placed;
+  placed.reserve(change.size());
+  for (const auto& e : change) placed.push_back({local(e.row), local(e.col), e.stiffness, e.damping});
 
   const int nf = num_frequencies();
   const int na = no_ + nt_;
@@ -101,10 +112,9 @@ bool StiffnessUpdate::Evaluate(const std::vector<DynamicStiffnessDerivative::Ent
   Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxChanged, Eigen::Dynamic> X(m, ni_), W(m, ni_);
   Eigen::MatrixXcd Y(no_, m), update(no_, ni_);
   for (int f = 0; f < nf; ++f) {
-    const double w = omega_rad_s_(f);
-    const Complex s(0.0, w);
+    const Complex s(0.0, omega_rad_s_(f));
     D.setZero();
-    for (const auto& e : change) D(local(e.row), local(e.col)) += e.stiffness + s * e.damping;
+    for (const Placed& e : placed) D(e.a, e.b) += e.stiffness + s * e.damping;
     const auto column = augmented_.col(f);
     for (int a = 0; a < m; ++a) {
       const int ta = position_[changed[a]];
@@ -113,12 +123,16 @@ bool StiffnessUpdate::Evaluate(const std::vector<DynamicStiffnessDerivative::Ent
       for (int o = 0; o < no_; ++o) Y(o, a) = column(o + na * (ni_ + ta));
     }
     A = Small::Identity(m, m) + D * G;
-    const Eigen::FullPivLU<Small> lu(A);
-    if (!lu.isInvertible()) return false;
-    W = lu.solve(D * X);
-    const Complex pre = std::pow(s, power_) * std::polar(1.0, -w * delay_s_);
+    // I + D G singular (the changed system has a pole at this frequency) leaves W, and so `out`, not
+    // finite; partial pivoting is as stable here as full (I + D G is small and far from singular
+    // elsewhere) and takes a third of its time, which a scan of hundreds of models repeats.
+    if (m == 1) {
+      W = (D(0, 0) / A(0, 0)) * X;
+    } else {
+      W = Eigen::PartialPivLU<Small>(A).solve(D * X);
+    }
     update.noalias() = Y * W;
-    update *= pre;
+    update *= prefactor_(f);
     for (int i = 0; i < ni_; ++i) {
       for (int o = 0; o < no_; ++o) (*out)(f, o + no_ * i) -= update(o, i);
     }

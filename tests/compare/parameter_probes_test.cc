@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -123,6 +125,73 @@ TEST(ParameterProbes, NoneWithoutAJointTermAmongTheParameters) {
   EXPECT_FALSE(probes.any());
   Eigen::VectorXd r;
   EXPECT_THROW(probes.Residuals({{0, 5.0}}, &r), InputError);
+}
+
+// The errors of a scan's models, each from the update of the list's middle model, against each model
+// set up anew: a servo's spring (one coordinate, and its damping with it), a coupling term of the
+// hexapod's joint across and beyond the range where the joint stays a model, and an extra body's
+// spring across the band (its six coordinates). A model that also changes a mass is set up anew.
+TEST(ErrorsOfStiffnessVariants, AgreeWithTheErrorOfEachModelSetUpAnew) {
+  const ProbeCase base = MakeCase();
+  auto scan = [&](const std::string& effect, const std::vector<std::pair<std::string, double>>& values) {
+    std::vector<model::ModelSpec> specs;
+    for (const auto& [parameter, value] : values) {
+      model::ModelSpec spec = base.spec;
+      model::Effect e = model::ParseEffect(effect, spec);
+      e.parameters[parameter] = value;
+      if (e.name == "extra-body") e.parameters["kr"] = value * 1e-3;
+      model::ApplyEffect(spec, e);
+      specs.push_back(spec);
+    }
+    return specs;
+  };
+  std::vector<std::pair<std::string, double>> servo, coupling, body;
+  for (int i = 0; i <= 20; ++i) servo.push_back({"k", 2e8 * std::pow(10.0, -2.0 + 0.2 * i)});
+  for (int i = 0; i <= 20; ++i) coupling.push_back({"k", -3e8 + 3e7 * i});
+  for (int i = 0; i <= 20; ++i) body.push_back({"k", 1.0 * std::pow(2 * M_PI * 10.0 * std::pow(40.0, i / 20.0), 2)});
+  std::vector<model::ModelSpec> mixed = scan("extra-body@hexapod:mass=1", body);
+  model::ApplyEffect(mixed[3], model::ParseEffect("payload@ry:mass=2", mixed[3]));  // a mass changes too
+
+  for (const ComparisonSpace space : {ComparisonSpace::kCompliance, ComparisonSpace::kRaw}) {
+    ComparisonOptions options;
+    options.space = space;
+    const Comparison comparison = Comparison::Create(base.spec, base.data, options);
+    struct Case {
+      std::string name;
+      std::vector<model::ModelSpec> specs;
+      int expect_updated;
+    };
+    const std::vector<Case> cases = {{"servo", scan("servo-stiffness@ty.Dy", servo), 21},
+                                     {"coupling", scan("coupled-stiffness@hexapod.Dx-Ry", coupling), -1},
+                                     {"body", scan("extra-body@hexapod:mass=1", body), 21},
+                                     {"mixed", mixed, 20}};
+    for (const Case& c : cases) {
+      int updated = -1;
+      const std::vector<double> errors = ErrorsOfStiffnessVariants(comparison, c.specs, &updated);
+      ASSERT_EQ(errors.size(), c.specs.size());
+      int invalid = 0;
+      for (size_t k = 0; k < c.specs.size(); ++k) {
+        double anew = std::numeric_limits<double>::infinity();
+        try {
+          anew = comparison.Error(c.specs[k]);
+        } catch (const InputError&) {
+          ++invalid;
+        }
+        if (std::isinf(anew)) {
+          EXPECT_TRUE(std::isinf(errors[k])) << c.name << " " << k;
+        } else {
+          EXPECT_LT(std::abs(errors[k] - anew), kAgreement * anew) << ToString(space) << " " << c.name << " " << k;
+        }
+      }
+      if (c.name == "coupling") {
+        EXPECT_GT(invalid, 0);  // the ends of the list make the joint indefinite
+        EXPECT_EQ(updated, 21 - invalid) << ToString(space);
+      } else {
+        EXPECT_EQ(invalid, 0) << c.name;
+        EXPECT_EQ(updated, c.expect_updated) << ToString(space) << " " << c.name;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -44,9 +44,9 @@ class StiffnessUpdate {
 
   /// H' of the system with Z changed by `change` (its entries summed: entries in the system's
   /// coordinates, each row and column in the set-up's coordinates, mass 0) into `out` (resized to
-  /// Nf x (Nout * Nin), layout of FrfArray::values). Returns false when I + D G_UU is singular at a
-  /// frequency (the changed system has a pole there) or more than kMaxChanged coordinates change;
-  /// `out` is then unspecified. Throws InputError for an entry outside the coordinates or with a mass.
+  /// Nf x (Nout * Nin), layout of FrfArray::values). Returns false when the result is not finite (I +
+  /// D G_UU singular at a frequency: the changed system has a pole there) or more than kMaxChanged
+  /// coordinates change; `out` is then unspecified. Throws InputError for an entry outside the coordinates or with a mass.
   bool Evaluate(const std::vector<DynamicStiffnessDerivative::Entry>& change, Eigen::MatrixXcd* out) const;
 
   /// The most coordinates one change may touch.
@@ -64,6 +64,7 @@ class StiffnessUpdate {
   // ((Nout + |T|) x (Nin + |T|)), without s^p e^{-s tau}.
   Eigen::MatrixXcd augmented_;
   Eigen::MatrixXcd values_;
+  Eigen::VectorXcd prefactor_;  // per frequency: s^p e^{-s tau}
 };
 
 }  // namespace stagefit::response
