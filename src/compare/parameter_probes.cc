@@ -87,10 +87,6 @@ bool ParameterProbes::Residuals(const std::vector<std::pair<int, double>>& chang
   return true;
 }
 
-}  // namespace stagefit::compare
-
-namespace stagefit::compare {
-
 std::vector<double> ErrorsOfStiffnessVariants(const Comparison& comparison, const std::vector<model::ModelSpec>& specs,
                                               int* num_by_update) {
   using Entry = response::DynamicStiffnessDerivative::Entry;

@@ -46,7 +46,8 @@ class StiffnessUpdate {
   /// coordinates, each row and column in the set-up's coordinates, mass 0) into `out` (resized to
   /// Nf x (Nout * Nin), layout of FrfArray::values). Returns false when the result is not finite (I +
   /// D G_UU singular at a frequency: the changed system has a pole there) or more than kMaxChanged
-  /// coordinates change; `out` is then unspecified. Throws InputError for an entry outside the coordinates or with a mass.
+  /// coordinates change; `out` is then unspecified. Throws InputError for an entry outside the
+  /// coordinates or with a mass.
   bool Evaluate(const std::vector<DynamicStiffnessDerivative::Entry>& change, Eigen::MatrixXcd* out) const;
 
   /// The most coordinates one change may touch.
