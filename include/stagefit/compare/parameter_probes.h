@@ -59,8 +59,8 @@ class ParameterProbes {
 /// (diagnose::ScanErrors). Models whose systems differ from that of the grid's middle model only in K,
 /// C and K_loss, in at most response::StiffnessUpdate::kMaxChanged coordinates each (a servo's or an
 /// extra body's spring, a coupling term), are evaluated from one set-up of that model by the Woodbury
-/// identity (response::StiffnessUpdate); the others, and any whose update fails (a pole on the grid),
-/// are set up anew. The errors equal Comparison::Error() to rounding (kAgreement in
+/// identity (response::StiffnessUpdate), when all of them together touch at most kMaxChanged
+/// coordinates; the others, and any whose update fails (a pole on the grid), are set up anew. The errors equal Comparison::Error() to rounding (kAgreement in
 /// tests/compare/parameter_probes_test.cc). Runs on every core. `num_by_update`, when given, is set
 /// to the number of models evaluated by the update.
 std::vector<double> ErrorsOfStiffnessVariants(const Comparison& comparison, const std::vector<model::ModelSpec>& specs,
