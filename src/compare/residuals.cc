@@ -458,6 +458,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   }
   c.weight_norm_ = std::sqrt(sum_w2);
 
+  c.StackRaw();
   // Fail early when the model cannot carry the channels.
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
   c.BuildModelSystem(assembled);
@@ -495,11 +496,47 @@ bool Comparison::CorrectedProjection(const model::ModelSpec& spec, Eigen::Matrix
   return true;
 }
 
+void Comparison::StackRaw() {
+  raw_stacked_.reset();
+  if (raw_measured_.empty()) return;
+  auto stacked = std::make_shared<RawStacked>();
+  const Eigen::Index nf = static_cast<Eigen::Index>(raw_measured_.size());
+  const Eigen::Index no = raw_measured_[0].rows(), ni = raw_measured_[0].cols();
+  stacked->re.resize(no, ni * nf);
+  stacked->im.resize(no, ni * nf);
+  for (Eigen::Index k = 0; k < nf; ++k) {
+    stacked->re.middleCols(k * ni, ni) = raw_measured_[static_cast<size_t>(k)].real();
+    stacked->im.middleCols(k * ni, ni) = raw_measured_[static_cast<size_t>(k)].imag();
+  }
+  if (!raw_noise_var_.empty()) {
+    stacked->noise_var.resize(no, ni * nf);
+    for (Eigen::Index k = 0; k < nf; ++k) stacked->noise_var.middleCols(k * ni, ni) = raw_noise_var_[static_cast<size_t>(k)];
+  }
+  raw_stacked_ = std::move(stacked);
+}
+
+Eigen::MatrixXd Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
+                                           Eigen::Index num_frequencies) {
+  const Eigen::Index ni = Q.rows(), np = P.rows();
+  const Eigen::MatrixXd left = P * stacked;  // [P H_1 ... P H_n]
+  Eigen::MatrixXd down(np * num_frequencies, ni);
+  for (Eigen::Index k = 0; k < num_frequencies; ++k) down.middleRows(k * np, np) = left.middleCols(k * ni, ni);
+  return down * Q;
+}
+
 const std::vector<Eigen::MatrixXcd>& Comparison::Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
                                                            std::vector<Eigen::MatrixXcd>* storage) const {
-  const Eigen::MatrixXcd Pc = P.cast<std::complex<double>>(), Qc = Q.cast<std::complex<double>>();
+  STAGEFIT_ASSERT(raw_stacked_ != nullptr, "Reproject: a comparison with raw channels");
+  // P and Q are real: the real and imaginary parts project on their own.
+  const Eigen::Index nf = static_cast<Eigen::Index>(raw_measured_.size()), np = P.rows();
+  const Eigen::MatrixXd re = ProjectStacked(P, raw_stacked_->re, Q, nf), im = ProjectStacked(P, raw_stacked_->im, Q, nf);
   storage->resize(raw_measured_.size());
-  for (size_t k = 0; k < raw_measured_.size(); ++k) (*storage)[k] = Pc * raw_measured_[k] * Qc;
+  for (Eigen::Index k = 0; k < nf; ++k) {
+    Eigen::MatrixXcd& out = (*storage)[static_cast<size_t>(k)];
+    out.resize(np, Q.cols());
+    out.real() = re.middleRows(k * np, np);
+    out.imag() = im.middleRows(k * np, np);
+  }
   return *storage;
 }
 
@@ -570,14 +607,16 @@ std::vector<double> Comparison::ReprojectedWeights(const std::vector<Eigen::Matr
   // raw noise propagated through this projection. (With the declared projection's noise, a turned
   // channel's correction weighed the elements it makes noisier as if they were not: the noise-free
   // truth with its correction scored 0.0835 against a floor of 0.039, seed 2013 of docs/diagnose.md.)
-  const Eigen::MatrixXd P2 = P.cwiseAbs2(), Q2 = Q.cwiseAbs2();
-  std::vector<Eigen::MatrixXd> noise_sigma(raw_noise_var_.size());
-  for (size_t k = 0; k < noise_sigma.size(); ++k) noise_sigma[k] = (P2 * raw_noise_var_[k] * Q2).cwiseSqrt();
+  STAGEFIT_ASSERT(raw_stacked_ != nullptr && raw_stacked_->noise_var.size() > 0,
+                  "ReprojectedWeights: a comparison with the raw channels' noise");
+  const Eigen::Index np = P.rows();
+  const Eigen::MatrixXd variance = ProjectStacked(P.cwiseAbs2(), raw_stacked_->noise_var, Q.cwiseAbs2(),
+                                                  static_cast<Eigen::Index>(raw_noise_var_.size()));
   std::vector<double> weights(points_.size());
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];
     const ElementIndex idx = used_elements_[pt.element];
-    const double sigma = noise_sigma[pt.frequency](idx.output, idx.input);
+    const double sigma = std::sqrt(variance(pt.frequency * np + idx.output, idx.input));
     const double magnitude = std::abs(values[pt.frequency](idx.output, idx.input));
     weights[p] = !std::isfinite(sigma) ? 0.0 : sigma == 0.0 ? weight_cap_ : std::min(magnitude / sigma, weight_cap_);
   }
@@ -635,6 +674,7 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   c.raw_measured_ = subset(raw_measured_);
   c.raw_noise_var_ = subset(raw_noise_var_);
   c.raw_noise_var_floor_ = subset(raw_noise_var_floor_);
+  c.StackRaw();
   c.points_.clear();
   double sum_w2 = 0.0;
   for (const Point& p : points_) {

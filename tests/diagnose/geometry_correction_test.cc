@@ -444,5 +444,62 @@ TEST(GeometryCorrection, ZeroCorrectionReproducesTheDeclaredProjection) {
   EXPECT_EQ(comparison.Error(elsewhere), comparison.Error(nominal));
 }
 
+
+// The re-projection under a correction (two products over the whole grid) against two other routes.
+// Its values: declaring the corrected geometry in the data, projected by measurement::ProjectToFrame(),
+// gives the same measurement to rounding, for a sensor moved and turned and for an impact. Its weights:
+// under a zero correction, on noisy data, every point is weighed as Create() weighs the declared
+// projection (frequency by frequency), so the error is the nominal one to rounding, on the whole grid
+// and on every third frequency (where the whole grid decides which elements stop counting).
+TEST(GeometryCorrection, TheReprojectionAgreesWithDeclaringTheCorrectedGeometry) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  const int a2x = TestSensorIndex("a2x");
+  ASSERT_GE(a2x, 0);
+  const Eigen::Vector3d offset(0.012, -0.004, 0.02), euler(0.05, 0.2, -0.1);
+  for (const bool impact : {false, true}) {
+    SCOPED_TRACE(impact ? "impact h2" : "sensor a2x");
+    const int index = impact ? 1 : a2x;
+    CorrectionCase c = MakeCase(impact, index, offset, euler);
+    synthetic::AddNoise(c.data, {0.02, 0.02, 3});
+    const auto comparison = compare::Comparison::Create(nominal, c.data);
+    model::ModelSpec corrected = nominal;
+    model::ApplyEffect(corrected, model::ParseEffect(c.with, corrected, comparison.CorrectableChannels()));
+    measurement::FrfData declared = c.data;
+    auto& channel = impact ? declared.inputs[index] : declared.outputs[index];
+    channel.position_W += offset;
+    channel.direction_W = kinematics::RotationFromEuler({euler(0), euler(1), euler(2)}) * channel.direction_W;
+    const auto as_declared = compare::Comparison::Create(nominal, declared);
+    std::vector<Eigen::MatrixXcd> storage;
+    const auto& reprojected = comparison.MeasuredFor(corrected, &storage);
+    ASSERT_EQ(&reprojected, &storage);
+    ASSERT_EQ(reprojected.size(), as_declared.measured().size());
+    for (size_t k = 0; k < reprojected.size(); ++k) {
+      ASSERT_EQ(reprojected[k].rows(), 6);
+      ASSERT_EQ(reprojected[k].cols(), 6);
+      EXPECT_LT((reprojected[k] - as_declared.measured()[k]).norm(), 1e-12 * as_declared.measured()[k].norm()) << k;
+    }
+  }
+  CorrectionCase c = MakeCase(false, a2x, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  synthetic::AddNoise(c.data, {0.02, 0.02, 3});
+  const auto whole = compare::Comparison::Create(nominal, c.data);
+  std::vector<int> every_third;
+  for (int k = 0; k < whole.num_frequencies(); k += 3) every_third.push_back(k);
+  const auto some = whole.OnFrequencies(every_third);
+  model::ModelSpec zero = nominal;
+  zero.geometry_corrections.push_back({"a2x", false, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()});
+  model::ModelSpec wrong = nominal;  // a model the data do not fit: errors well above the noise
+  const model::ParameterInfo hexapod_dz = model::MatchParameters(wrong, {"hexapod.k.Dz"}).at(0);
+  model::SetParameter(wrong, hexapod_dz, 0.3 * model::GetParameter(wrong, hexapod_dz));
+  for (const compare::Comparison* on : {&whole, &some}) {
+    for (const model::ModelSpec* base : {&nominal, static_cast<const model::ModelSpec*>(&wrong)}) {
+      model::ModelSpec with_zero = *base;
+      with_zero.geometry_corrections = zero.geometry_corrections;
+      const double expected = on->Error(*base);
+      EXPECT_GT(expected, 0.0);
+      EXPECT_NEAR(on->Error(with_zero), expected, 1e-10 * expected);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace stagefit

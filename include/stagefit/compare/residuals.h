@@ -400,7 +400,8 @@ class Comparison {
   // The projection H_X = P H_L Q of the raw channels under `spec`'s geometry corrections; false (P, Q
   // untouched) when the measurement is not re-projected for it.
   bool CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const;
-  // The raw measurement projected by P and Q into `storage` (returned).
+  // The raw measurement projected by P and Q into `storage` (returned): P H_k Q at every frequency k,
+  // as two products over the whole grid (raw_stacked_).
   const std::vector<Eigen::MatrixXcd>& Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
                                                  std::vector<Eigen::MatrixXcd>* storage) const;
   // e_p for every point, from the model's FRF values (layout of response::FrfArray::values) and the
@@ -439,6 +440,21 @@ class Comparison {
   // The same for the noise floor (Point::snr): (1 - gamma^2) |H_meas|^2, whose expectation is the noise
   // variance itself (Create()).
   std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
+  // raw_measured_ (its real and imaginary parts) and raw_noise_var_, frequency after frequency: raw
+  // outputs x (raw inputs * frequencies). A re-projection P H_k Q at every frequency is then one product
+  // P [H_1 ... H_n] and one product of its blocks, stacked down the rows, by Q, rather than two small
+  // products per frequency (a fit under a channel's correction re-projects at every evaluation, and its
+  // differenced columns two times per parameter of the correction). Shared by the copies.
+  struct RawStacked {
+    Eigen::MatrixXd re, im, noise_var;
+  };
+  std::shared_ptr<const RawStacked> raw_stacked_;
+  // Sets raw_stacked_ from raw_measured_ and raw_noise_var_ (none when there is no raw measurement).
+  void StackRaw();
+  // Each frequency's P H_k Q from the stacked parts of H (RawStacked's layout): rows P.rows() * k ...
+  // of the result are frequency k's P H_k Q.
+  static Eigen::MatrixXd ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
+                                        Eigen::Index num_frequencies);
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the
