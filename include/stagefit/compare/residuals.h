@@ -441,18 +441,19 @@ class Comparison {
   // variance itself (Create()).
   std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
   // raw_measured_ (its real and imaginary parts) and raw_noise_var_, frequency after frequency: raw
-  // outputs x (raw inputs * frequencies). A re-projection P H_k Q at every frequency is then one product
-  // P [H_1 ... H_n] and one product of its blocks, stacked down the rows, by Q, rather than two small
-  // products per frequency (a fit under a channel's correction re-projects at every evaluation, and its
-  // differenced columns two times per parameter of the correction). Shared by the copies.
+  // outputs x (raw inputs * frequencies), so that column k of a part seen as (outputs * inputs) x
+  // frequencies is vec(H_k). A re-projection P H_k Q at every frequency is then one product by
+  // Q^T kron P rather than two small products per frequency (a fit under a channel's correction
+  // re-projects at every evaluation, and its differenced columns two times per parameter of the
+  // correction). Shared by the copies.
   struct RawStacked {
     Eigen::MatrixXd re, im, noise_var;
   };
   std::shared_ptr<const RawStacked> raw_stacked_;
   // Sets raw_stacked_ from raw_measured_ and raw_noise_var_ (none when there is no raw measurement).
   void StackRaw();
-  // Each frequency's P H_k Q from the stacked parts of H (RawStacked's layout): rows P.rows() * k ...
-  // of the result are frequency k's P H_k Q.
+  // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout): column k of the result is
+  // vec(P H_k Q) (P.rows() x Q.cols(), column-major).
   static Eigen::MatrixXd ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
                                         Eigen::Index num_frequencies);
   double weight_cap_ = kDefaultCoherenceWeightCap;
