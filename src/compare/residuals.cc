@@ -515,8 +515,8 @@ void Comparison::StackRaw() {
   raw_stacked_ = std::move(stacked);
 }
 
-Eigen::MatrixXd Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
-                                           Eigen::Index num_frequencies) {
+void Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
+                                Eigen::Index num_frequencies, Eigen::MatrixXd* out) {
   // vec(P H Q) = (Q^T kron P) vec(H), and the stacked parts are vec(H_k) column after column: one
   // product for the whole grid, with no copy of the data (a product per frequency, or two products with
   // the blocks rearranged between them, took 10-20 times longer).
@@ -526,7 +526,8 @@ Eigen::MatrixXd Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen
   for (Eigen::Index j = 0; j < nq; ++j) {
     for (Eigen::Index b = 0; b < ni; ++b) kron.block(j * np, b * no, np, no) = Q(b, j) * P;
   }
-  return kron * Eigen::Map<const Eigen::MatrixXd>(stacked.data(), no * ni, num_frequencies);
+  out->resize(np * nq, num_frequencies);
+  out->noalias() = kron * Eigen::Map<const Eigen::MatrixXd>(stacked.data(), no * ni, num_frequencies);
 }
 
 const std::vector<Eigen::MatrixXcd>& Comparison::Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
@@ -534,7 +535,10 @@ const std::vector<Eigen::MatrixXcd>& Comparison::Reproject(const Eigen::MatrixXd
   STAGEFIT_ASSERT(raw_stacked_ != nullptr, "Reproject: a comparison with raw channels");
   // P and Q are real: the real and imaginary parts project on their own.
   const Eigen::Index nf = static_cast<Eigen::Index>(raw_measured_.size()), np = P.rows();
-  const Eigen::MatrixXd re = ProjectStacked(P, raw_stacked_->re, Q, nf), im = ProjectStacked(P, raw_stacked_->im, Q, nf);
+  // Kept per thread: a fresh result of this size (hundreds of kB) is mapped and faulted in at every call.
+  thread_local Eigen::MatrixXd re, im;
+  ProjectStacked(P, raw_stacked_->re, Q, nf, &re);
+  ProjectStacked(P, raw_stacked_->im, Q, nf, &im);
   storage->resize(raw_measured_.size());
   for (Eigen::Index k = 0; k < nf; ++k) {
     Eigen::MatrixXcd& out = (*storage)[static_cast<size_t>(k)];
@@ -615,8 +619,9 @@ std::vector<double> Comparison::ReprojectedWeights(const std::vector<Eigen::Matr
   STAGEFIT_ASSERT(raw_stacked_ != nullptr && raw_stacked_->noise_var.size() > 0,
                   "ReprojectedWeights: a comparison with the raw channels' noise");
   const Eigen::Index np = P.rows();
-  const Eigen::MatrixXd variance = ProjectStacked(P.cwiseAbs2(), raw_stacked_->noise_var, Q.cwiseAbs2(),
-                                                  static_cast<Eigen::Index>(raw_noise_var_.size()));
+  thread_local Eigen::MatrixXd variance;  // as in Reproject()
+  ProjectStacked(P.cwiseAbs2(), raw_stacked_->noise_var, Q.cwiseAbs2(), static_cast<Eigen::Index>(raw_noise_var_.size()),
+                 &variance);
   std::vector<double> weights(points_.size());
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];

@@ -452,10 +452,10 @@ class Comparison {
   std::shared_ptr<const RawStacked> raw_stacked_;
   // Sets raw_stacked_ from raw_measured_ and raw_noise_var_ (none when there is no raw measurement).
   void StackRaw();
-  // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout): column k of the result is
+  // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout): column k of `out` is
   // vec(P H_k Q) (P.rows() x Q.cols(), column-major).
-  static Eigen::MatrixXd ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
-                                        Eigen::Index num_frequencies);
+  static void ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
+                             Eigen::Index num_frequencies, Eigen::MatrixXd* out);
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the
