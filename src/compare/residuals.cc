@@ -518,8 +518,9 @@ void Comparison::StackRaw() {
 void Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
                                 Eigen::Index num_frequencies, Eigen::MatrixXd* out) {
   // vec(P H Q) = (Q^T kron P) vec(H), and the stacked parts are vec(H_k) column after column: one
-  // product for the whole grid, with no copy of the data (a product per frequency, or two products with
-  // the blocks rearranged between them, took 10-20 times longer).
+  // product for the whole grid, with no copy of the data. (A standalone timing at 1176 frequencies, per
+  // part: 0.17 ms; two products with the blocks rearranged between them 3.3 ms; the complex products
+  // per frequency into fresh matrices, as before, 1.9 ms for both parts, 0.41 ms into kept ones.)
   const Eigen::Index no = P.cols(), ni = Q.rows(), np = P.rows(), nq = Q.cols();
   STAGEFIT_ASSERT(stacked.rows() == no && stacked.cols() == ni * num_frequencies, "ProjectStacked: the stacked layout");
   Eigen::MatrixXd kron(np * nq, no * ni);

@@ -401,7 +401,7 @@ class Comparison {
   // untouched) when the measurement is not re-projected for it.
   bool CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const;
   // The raw measurement projected by P and Q into `storage` (returned): P H_k Q at every frequency k,
-  // as two products over the whole grid (raw_stacked_).
+  // the real and imaginary parts each as one product over the whole grid (ProjectStacked()).
   const std::vector<Eigen::MatrixXcd>& Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
                                                  std::vector<Eigen::MatrixXcd>* storage) const;
   // e_p for every point, from the model's FRF values (layout of response::FrfArray::values) and the
