@@ -174,6 +174,8 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   c.measured_side_cache_ = std::make_shared<MeasuredSideCache>();
   c.weights_.assign(nf, Eigen::MatrixXd());
   c.snr_.assign(nf, Eigen::MatrixXd());
+  std::vector<Eigen::MatrixXcd> raw_measured;  // per frequency, stacked into raw_ at the end
+  std::vector<Eigen::MatrixXd> raw_noise_var;
   c.measured_.assign(nf, Eigen::MatrixXcd());
 
   if (options.space == ComparisonSpace::kCompliance) {
@@ -198,9 +200,9 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       for (int k = 0; k < nf; ++k) c.measured_[k] = projection.frf[rows[k]];
       c.raw_outputs_ = measurement.outputs;
       c.raw_inputs_ = measurement.inputs;
-      c.raw_measured_.resize(nf);
+      raw_measured.resize(nf);
       for (int k = 0; k < nf; ++k) {
-        c.raw_measured_[k] = measurement.frf[rows[k]] *
+        raw_measured[k] = measurement.frf[rows[k]] *
                              measurement::ConversionFactor(c.frequency_hz_(k), measurement.quantity, c.quantity_);
       }
     } else {
@@ -239,7 +241,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
           var_X = P.cwiseAbs2() * var_L * Q.cwiseAbs2();
         }
         if (!projected) {
-          c.raw_noise_var_.push_back(var_L);
+          raw_noise_var.push_back(var_L);
           c.raw_noise_var_floor_.push_back(var_L_floor);
         }
         for (int a = 0; a < 6; ++a) {
@@ -458,7 +460,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   }
   c.weight_norm_ = std::sqrt(sum_w2);
 
-  c.StackRaw();
+  c.raw_ = RawStacked::Stack(raw_measured, raw_noise_var);
   // Fail early when the model cannot carry the channels.
   const auto assembled = model::AssembledModel::Assemble(spec, "model '" + spec.name + "'");
   c.BuildModelSystem(assembled);
@@ -479,7 +481,7 @@ model::SecondOrderSystem Comparison::BuildModelSystem(const model::AssembledMode
 }
 
 bool Comparison::CorrectedProjection(const model::ModelSpec& spec, Eigen::MatrixXd* P, Eigen::MatrixXd* Q) const {
-  if (space_ != ComparisonSpace::kCompliance || raw_measured_.empty() || spec.geometry_corrections.empty()) {
+  if (space_ != ComparisonSpace::kCompliance || !raw_ || spec.geometry_corrections.empty()) {
     return false;
   }
   std::vector<measurement::ChannelGeometry> outputs = raw_outputs_, inputs = raw_inputs_;
@@ -496,23 +498,41 @@ bool Comparison::CorrectedProjection(const model::ModelSpec& spec, Eigen::Matrix
   return true;
 }
 
-void Comparison::StackRaw() {
-  raw_stacked_.reset();
-  if (raw_measured_.empty()) return;
+std::shared_ptr<const Comparison::RawStacked> Comparison::RawStacked::Stack(const std::vector<Eigen::MatrixXcd>& raw,
+                                                                           const std::vector<Eigen::MatrixXd>& noise_var) {
+  if (raw.empty()) return nullptr;
   auto stacked = std::make_shared<RawStacked>();
-  const Eigen::Index nf = static_cast<Eigen::Index>(raw_measured_.size());
-  const Eigen::Index no = raw_measured_[0].rows(), ni = raw_measured_[0].cols();
+  const Eigen::Index nf = static_cast<Eigen::Index>(raw.size()), no = raw[0].rows(), ni = raw[0].cols();
+  stacked->num_inputs = ni;
+  stacked->num_frequencies = nf;
   stacked->re.resize(no, ni * nf);
   stacked->im.resize(no, ni * nf);
   for (Eigen::Index k = 0; k < nf; ++k) {
-    stacked->re.middleCols(k * ni, ni) = raw_measured_[static_cast<size_t>(k)].real();
-    stacked->im.middleCols(k * ni, ni) = raw_measured_[static_cast<size_t>(k)].imag();
+    stacked->re.middleCols(k * ni, ni) = raw[static_cast<size_t>(k)].real();
+    stacked->im.middleCols(k * ni, ni) = raw[static_cast<size_t>(k)].imag();
   }
-  if (!raw_noise_var_.empty()) {
+  if (!noise_var.empty()) {
+    STAGEFIT_ASSERT(static_cast<Eigen::Index>(noise_var.size()) == nf, "RawStacked::Stack: a noise variance per frequency");
     stacked->noise_var.resize(no, ni * nf);
-    for (Eigen::Index k = 0; k < nf; ++k) stacked->noise_var.middleCols(k * ni, ni) = raw_noise_var_[static_cast<size_t>(k)];
+    for (Eigen::Index k = 0; k < nf; ++k) stacked->noise_var.middleCols(k * ni, ni) = noise_var[static_cast<size_t>(k)];
   }
-  raw_stacked_ = std::move(stacked);
+  return stacked;
+}
+
+std::shared_ptr<const Comparison::RawStacked> Comparison::RawStacked::OnFrequencies(const std::vector<int>& kept) const {
+  auto subset = std::make_shared<RawStacked>();
+  const Eigen::Index ni = num_inputs, nk = static_cast<Eigen::Index>(kept.size());
+  subset->num_inputs = ni;
+  subset->num_frequencies = nk;
+  auto columns = [&](const Eigen::MatrixXd& all, Eigen::MatrixXd* out) {
+    if (all.size() == 0) return;
+    out->resize(all.rows(), ni * nk);
+    for (Eigen::Index k = 0; k < nk; ++k) out->middleCols(k * ni, ni) = all.middleCols(kept[static_cast<size_t>(k)] * ni, ni);
+  };
+  columns(re, &subset->re);
+  columns(im, &subset->im);
+  columns(noise_var, &subset->noise_var);
+  return subset;
 }
 
 void Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
@@ -533,14 +553,14 @@ void Comparison::ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd&
 
 const std::vector<Eigen::MatrixXcd>& Comparison::Reproject(const Eigen::MatrixXd& P, const Eigen::MatrixXd& Q,
                                                            std::vector<Eigen::MatrixXcd>* storage) const {
-  STAGEFIT_ASSERT(raw_stacked_ != nullptr, "Reproject: a comparison with raw channels");
+  STAGEFIT_ASSERT(raw_ != nullptr, "Reproject: a comparison with raw channels");
   // P and Q are real: the real and imaginary parts project on their own.
-  const Eigen::Index nf = static_cast<Eigen::Index>(raw_measured_.size()), np = P.rows();
+  const Eigen::Index nf = raw_->num_frequencies, np = P.rows();
   // Kept per thread: a fresh result of this size (hundreds of kB) is mapped and faulted in at every call.
   thread_local Eigen::MatrixXd re, im;
-  ProjectStacked(P, raw_stacked_->re, Q, nf, &re);
-  ProjectStacked(P, raw_stacked_->im, Q, nf, &im);
-  storage->resize(raw_measured_.size());
+  ProjectStacked(P, raw_->re, Q, nf, &re);
+  ProjectStacked(P, raw_->im, Q, nf, &im);
+  storage->resize(static_cast<size_t>(nf));
   for (Eigen::Index k = 0; k < nf; ++k) {
     Eigen::MatrixXcd& out = (*storage)[static_cast<size_t>(k)];
     out.resize(np, Q.cols());
@@ -558,7 +578,7 @@ const std::vector<Eigen::MatrixXcd>& Comparison::MeasuredFor(const model::ModelS
 
 std::shared_ptr<const Comparison::MeasuredSide> Comparison::MeasuredSideFor(const model::ModelSpec& spec) const {
   Eigen::MatrixXd P, Q;
-  if (!CorrectedProjection(spec, &P, &Q) || raw_noise_var_.empty()) {
+  if (!CorrectedProjection(spec, &P, &Q) || raw_->noise_var.size() == 0) {
     auto side = std::make_shared<MeasuredSide>();
     if (P.size()) {
       Reproject(P, Q, &side->reprojected);
@@ -617,12 +637,11 @@ std::vector<double> Comparison::ReprojectedWeights(const std::vector<Eigen::Matr
   // raw noise propagated through this projection. (With the declared projection's noise, a turned
   // channel's correction weighed the elements it makes noisier as if they were not: the noise-free
   // truth with its correction scored 0.0835 against a floor of 0.039, seed 2013 of docs/diagnose.md.)
-  STAGEFIT_ASSERT(raw_stacked_ != nullptr && raw_stacked_->noise_var.size() > 0,
+  STAGEFIT_ASSERT(raw_ != nullptr && raw_->noise_var.size() > 0,
                   "ReprojectedWeights: a comparison with the raw channels' noise");
   const Eigen::Index np = P.rows();
   thread_local Eigen::MatrixXd variance;  // as in Reproject()
-  ProjectStacked(P.cwiseAbs2(), raw_stacked_->noise_var, Q.cwiseAbs2(), static_cast<Eigen::Index>(raw_noise_var_.size()),
-                 &variance);
+  ProjectStacked(P.cwiseAbs2(), raw_->noise_var, Q.cwiseAbs2(), raw_->num_frequencies, &variance);
   std::vector<double> weights(points_.size());
   for (size_t p = 0; p < points_.size(); ++p) {
     const Point& pt = points_[p];
@@ -682,10 +701,8 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   c.measured_ = subset(measured_);
   c.weights_ = subset(weights_);
   c.snr_ = subset(snr_);
-  c.raw_measured_ = subset(raw_measured_);
-  c.raw_noise_var_ = subset(raw_noise_var_);
+  if (raw_) c.raw_ = raw_->OnFrequencies(kept);
   c.raw_noise_var_floor_ = subset(raw_noise_var_floor_);
-  c.StackRaw();
   c.points_.clear();
   double sum_w2 = 0.0;
   for (const Point& p : points_) {

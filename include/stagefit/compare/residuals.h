@@ -429,29 +429,29 @@ class Comparison {
   Eigen::Vector3d p_WXo_ = Eigen::Vector3d::Zero();
   std::vector<model::InputSpec> model_inputs_;
   std::vector<model::OutputSpec> model_outputs_;
-  // Compliance space from raw channels: the raw data on the grid in the comparison quantity and the
-  // declared channel geometry, for re-projection under geometry corrections.
-  std::vector<Eigen::MatrixXcd> raw_measured_;
+  // Compliance space from raw channels: the raw data on the grid in the comparison quantity (raw_),
+  // and the declared channel geometry, for re-projection under geometry corrections.
   std::vector<measurement::ChannelGeometry> raw_outputs_, raw_inputs_;
-  // With coherence: the raw channels' noise variance (per frequency, outputs x inputs; infinite where
-  // the raw SNR is 0) and the weight cap, to weigh a re-projected measurement with the noise its own
-  // projection propagates.
-  std::vector<Eigen::MatrixXd> raw_noise_var_;
   // The same for the noise floor (Point::snr): (1 - gamma^2) |H_meas|^2, whose expectation is the noise
   // variance itself (Create()).
   std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
-  // raw_measured_ (its real and imaginary parts) and raw_noise_var_, frequency after frequency: raw
-  // outputs x (raw inputs * frequencies), so that column k of a part seen as (outputs * inputs) x
-  // frequencies is vec(H_k). A re-projection P H_k Q at every frequency is then one product by
-  // Q^T kron P rather than two small products per frequency (a fit under a channel's correction
-  // re-projects at every evaluation, and its differenced columns two times per parameter of the
-  // correction). Shared by the copies.
+  // The raw data H_k (real and imaginary parts) and, with coherence, the raw channels' noise variance
+  // (infinite where the raw SNR is 0: the weights of a re-projected measurement come from the noise its
+  // own projection propagates), frequency after frequency: raw outputs x (raw inputs * frequencies),
+  // so that column k of a part seen as (outputs * inputs) x frequencies is vec(H_k). A re-projection
+  // P H_k Q at every frequency is then one product by Q^T kron P rather than two small products per
+  // frequency (a fit under a channel's correction re-projects at every evaluation, and its differenced
+  // columns two times per parameter of the correction). Shared by the copies; none without raw channels.
   struct RawStacked {
-    Eigen::MatrixXd re, im, noise_var;
+    Eigen::MatrixXd re, im, noise_var;  // noise_var empty without coherence
+    Eigen::Index num_inputs = 0, num_frequencies = 0;
+    // From the data per frequency (`noise_var` empty or one per frequency); null when `raw` is empty.
+    static std::shared_ptr<const RawStacked> Stack(const std::vector<Eigen::MatrixXcd>& raw,
+                                                   const std::vector<Eigen::MatrixXd>& noise_var);
+    // The frequencies `kept` (ascending indices) alone.
+    std::shared_ptr<const RawStacked> OnFrequencies(const std::vector<int>& kept) const;
   };
-  std::shared_ptr<const RawStacked> raw_stacked_;
-  // Sets raw_stacked_ from raw_measured_ and raw_noise_var_ (none when there is no raw measurement).
-  void StackRaw();
+  std::shared_ptr<const RawStacked> raw_;
   // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout): column k of `out` is
   // vec(P H_k Q) (P.rows() x Q.cols(), column-major).
   static void ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
