@@ -128,6 +128,10 @@ void RegisterLoopCommand(CLI::App& app) {
       for (const auto& s : summary.history) {
         history.push_back({{"action", s.action}, {"effect", s.effect}, {"error", s.error}});
       }
+      nlohmann::json missing_bands = nlohmann::json::array();
+      for (const auto& b : summary.missing_bands) {
+        missing_bands.push_back({{"low_hz", b.band.low_hz}, {"high_hz", b.band.high_hz}, {"error", b.error}, {"share", b.share}});
+      }
       nlohmann::json report = {{"command", "loop"},
                                {"measurement", o->measurement},
                                {"error", summary.history.back().error},
@@ -139,6 +143,7 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"confirmed", summary.confirmed},
                                {"implausible_effects", summary.implausible_effects},
                                {"conclusion", summary.conclusion},
+                               {"missing_bands", missing_bands},
                                {"channels", ChannelErrorsJson(summary.final_channels)},
                                {"channel_faults", channel_faults},
                                {"last_verdict", summary.last_verdict},

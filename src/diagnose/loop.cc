@@ -249,7 +249,10 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
   std::string text = line + WhereWords(bands, elements, ConclusionChannels(summary)) + ".";
   if (!effects.empty()) {
     text += " The effects added on the way (" + effects +
-            ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed.";
+            ") lower the error but do not reach the floor: they may stand in for what is missing and are not confirmed";
+    text += summary.missing_bands.empty() ? std::string(".")
+                                          : ". Before them the error was largest in " + WhereWords(summary.missing_bands, {}, {}) +
+                                                ": what is missing acts there (the effects may have moved the error they leave away from it).";
   }
   return text;
 }
@@ -1075,6 +1078,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     // (DropUnneededEffects).
     if (options.turned_channel_deg > 0) AddTurnedChannel(spec, measurement, comparison, options, &current, &summary);
   }
+  summary.first_fit = current;
 
   const DiagnoseOptions d = LoopDiagnoseOptions(options, spec);
   // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
@@ -1302,6 +1306,14 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   summary.final_channels = WorstChannels(current, measurement, options.diagnose.comparison, 6);
   if (summary.confirmed && !ConclusionChannels(summary).empty()) {
     summary.final_channels = ChannelsAfterRawRefit(current, measurement, options, summary.final_channels);
+  }
+  if (floor.known && floor.floor > 0 && !at_floor(summary.history.back().error)) {
+    try {
+      std::vector<compare::ElementError> none;
+      SortWorst(comparison.Evaluate(summary.first_fit), 2, 0, &summary.missing_bands, &none);
+    } catch (const NumericalError&) {
+      // A first fit that cannot be evaluated: the conclusion names the final model's bands only.
+    }
   }
   summary.conclusion = Conclusion(summary, comparison, current);
   // The final model's history: the model's own (the resumed state's, with the steps that made it),

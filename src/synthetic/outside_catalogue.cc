@@ -44,6 +44,52 @@ std::vector<std::string> MainChannels(const Eigen::VectorXd& energy, const std::
   return names;
 }
 
+/// The indices of the fewest entries of `energy` that hold half of its sum, largest first.
+std::vector<int> HoldingHalf(const Eigen::VectorXd& energy) {
+  std::vector<int> order(energy.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return energy(a) > energy(b); });
+  std::vector<int> kept;
+  double held = 0;
+  for (int i : order) {
+    if (!(energy.sum() > 0) || held >= 0.5 * energy.sum()) break;
+    kept.push_back(i);
+    held += energy(i);
+  }
+  return kept;
+}
+
+/// n x 6: the readings of `channels` (d . (v + theta x r) = [d, r x d] . [v; theta]) for a rigid motion
+/// [v; theta] of a frame at `origin_W`.
+Eigen::MatrixXd RigidReadings(const std::vector<ChannelGeometry>& channels, const Eigen::Vector3d& origin_W) {
+  Eigen::MatrixXd a(channels.size(), 6);
+  for (size_t k = 0; k < channels.size(); ++k) {
+    const Eigen::Vector3d& d = channels[k].direction_W;
+    a.row(k) << d.transpose(), (channels[k].position_W - origin_W).cross(d).transpose();
+  }
+  return a;
+}
+
+/// Per element of the 6x6 rigid-body accelerance, OutsideCatalogueCase::elements' measure of the change.
+Eigen::MatrixXd PlatformChange(const FrfData& with, const FrfData& without, const Eigen::Vector3d& origin_W) {
+  const Eigen::MatrixXcd out = RigidReadings(with.outputs, origin_W).completeOrthogonalDecomposition().pseudoInverse().cast<Complex>();
+  // The impacts' wrenches are the transpose of the readings' map: an impact along d at r is [d; r x d].
+  const Eigen::MatrixXcd in =
+      RigidReadings(with.inputs, origin_W).transpose().completeOrthogonalDecomposition().pseudoInverse().cast<Complex>();
+  Eigen::MatrixXd change = Eigen::MatrixXd::Zero(6, 6);
+  for (int k = 0; k < with.num_frequencies(); ++k) {
+    const Eigen::MatrixXcd g0 = out * without.frf[k] * in, g1 = out * with.frf[k] * in;
+    const Eigen::VectorXd diagonal = g0.diagonal().cwiseAbs();
+    const double least = 1e-6 * diagonal.maxCoeff();
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) {
+        change(i, j) += std::norm(g1(i, j) - g0(i, j)) / (std::max(diagonal(i), least) * std::max(diagonal(j), least));
+      }
+    }
+  }
+  return change;
+}
+
 }  // namespace
 
 OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, uint64_t seed, const std::string& kind,
@@ -150,6 +196,25 @@ OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, u
   }
   c.outputs = MainChannels(per_output, with.outputs);
   c.inputs = MainChannels(per_input, with.inputs);
+
+  const std::vector<measurement::FrequencyBand> bands =
+      measurement::MakeFractionalOctaveBands(with.frequency_hz.minCoeff(), with.frequency_hz.maxCoeff(), 3);
+  Eigen::VectorXd per_band = Eigen::VectorXd::Zero(static_cast<int>(bands.size()));
+  for (int k = 0; k < with.num_frequencies(); ++k) {
+    for (size_t b = 0; b < bands.size(); ++b) {
+      if (with.frequency_hz(k) >= bands[b].low_hz && (with.frequency_hz(k) < bands[b].high_hz || b + 1 == bands.size())) {
+        per_band(static_cast<int>(b)) += change[k].sum();
+        break;
+      }
+    }
+  }
+  for (int b : HoldingHalf(per_band)) c.bands.push_back(bands[b]);
+  static const char* kOutputs[6] = {"Dx", "Dy", "Dz", "Rx", "Ry", "Rz"};
+  static const char* kInputs[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+  const Eigen::MatrixXd per_element = PlatformChange(with, without, p_WXo);
+  for (int e : HoldingHalf(per_element.reshaped())) {
+    c.elements.push_back(std::string(kOutputs[e % 6]) + "/" + kInputs[e / 6]);  // column-major
+  }
 
   c.measurement = with;
   NoiseOptions n;

@@ -9,12 +9,16 @@
 // Out-of-catalogue cases (--outside O, synthetic::MakeOutsideCatalogueCase: a flexible mode of the top
 // plate, bending or in-plane, or a cable between the granite and the hexapod, kinds in turn, changing
 // the data by 8-32 noise standard deviations): whether
-// the loop adds nothing, and whether its last diagnosis localises what is missing: one of the two
-// worst bands it names holds the frequency where the hidden part changes the data most (or, counted
-// apart, the worst element's own worst band, named with it when it holds a third of its error), and
-// one of the three worst elements it names (or its least rigid channel) is on a channel the hidden
-// part changes most, and (counted apart) one of the raw channels it names as standing out
-// (diagnose::WorstChannels, ChannelWords).
+// the loop adds nothing, and whether its conclusion localises what is missing. By band: one of the
+// two bands it names as where what is missing acts (LoopSummary::missing_bands; the last diagnosis'
+// worst bands when it names none) holds the frequency where the hidden part changes the data most ("peak"; or,
+// counted apart, the worst element's own worst band, named with it when it holds a third of its
+// error), or is one of the fewest bands that hold half the change ("half"). By channel: one of the
+// three worst elements it names is one of the fewest elements of the top platform's accelerance that
+// hold half the change ("element"), one of them or its least rigid channel is on a raw channel the
+// hidden part changes most ("channel", for the raw space), or one of the raw channels it names as
+// standing out is (diagnose::WorstChannels, ChannelWords; "raw"). The generator computes where the
+// change is (synthetic::OutsideCatalogueCase) from its own projection, not the comparison's.
 //
 // Usage: eval_loop [--cases N] [--two-effects K] [--effect-free M] [--three-effects L] [--outside O]
 //                  [--first-seed S] [--space compliance|raw] [--max-rounds R] [--effects a,b]
@@ -32,6 +36,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -193,6 +198,9 @@ struct OutsideOutcome {
   bool claimed = false;  // and confirmed: the loop ends at the floor with it (LoopSummary::confirmed)
   bool at_floor = false;  // the loop ended within 1.2x the floor: the hidden part is absorbed or unseen in this space
   bool band = false;     // a worst band named holds the peak of the change
+  bool band_half = false;  // a worst band named is one of the bands holding half the change
+  bool final_band_half = false;  // the same of the last diagnosis' worst bands (before missing_bands was named)
+  bool element = false;  // a worst element named is one of the platform elements holding half the change
   bool element_band = false;  // the worst element's own worst band, named with it, holds it
   bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
   bool raw_channel = false;  // one of the raw channels the conclusion names as standing out is
@@ -221,9 +229,20 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   OutsideOutcome o;
   o.added = !summary.effects_added.empty();
   o.claimed = o.added && summary.confirmed;
-  for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
-    o.band = o.band || (hidden.peak_hz >= last.worst_bands[k].band.low_hz && hidden.peak_hz <= last.worst_bands[k].band.high_hz);
+  // The bands the conclusion names as where what is missing acts (the first fit's worst, when the loop
+  // added effects above the floor), else the last diagnosis' worst.
+  const std::vector<compare::BandError>& named_bands = summary.missing_bands.empty() ? last.worst_bands : summary.missing_bands;
+  auto holds_half = [&](const measurement::FrequencyBand& named) {
+    for (const measurement::FrequencyBand& b : hidden.bands) {
+      if (std::abs(b.centre_hz() / named.centre_hz() - 1) < 1e-9) return true;
+    }
+    return false;
+  };
+  for (size_t k = 0; k < named_bands.size() && k < 2; ++k) {
+    o.band = o.band || (hidden.peak_hz >= named_bands[k].band.low_hz && hidden.peak_hz <= named_bands[k].band.high_hz);
+    o.band_half = o.band_half || holds_half(named_bands[k].band);
   }
+  for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) o.final_band_half = o.final_band_half || holds_half(last.worst_bands[k].band);
   if (!last.worst_elements.empty() && last.worst_elements[0].worst_band_share > diagnose::kElementBandShareNamed) {
     const auto& b = last.worst_elements[0].worst_band;
     o.element_band = hidden.peak_hz >= b.low_hz && hidden.peak_hz <= b.high_hz;
@@ -236,6 +255,7 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
     const std::string& name = last.worst_elements[k].name;  // "<output>/<input>"
     const size_t slash = name.find('/');
     o.channel = o.channel || changed(name.substr(0, slash)) || changed(name.substr(slash + 1));
+    o.element = o.element || std::count(hidden.elements.begin(), hidden.elements.end(), name) > 0;
     where += (where.empty() ? "" : " ") + name;
   }
   if (!last.inconsistent_channels.empty()) o.channel = o.channel || changed(last.inconsistent_channels[0].channel);
@@ -248,19 +268,28 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
     std::snprintf(named, sizeof named, " %s(%.1fx floor, %.1fx median)", c.name.c_str(), c.times_floor, c.times_median);
     where += named;
   }
-  for (size_t k = 0; k < last.worst_bands.size() && k < 2; ++k) {
+  for (size_t k = 0; k < named_bands.size() && k < 2; ++k) {
     char band[64];
-    std::snprintf(band, sizeof band, " %.0f-%.0f Hz", last.worst_bands[k].band.low_hz, last.worst_bands[k].band.high_hz);
+    std::snprintf(band, sizeof band, " %.0f-%.0f Hz", named_bands[k].band.low_hz, named_bands[k].band.high_hz);
     where += band;
   }
+  std::string truth;  // where the change is: its bands, its platform elements
+  for (const measurement::FrequencyBand& b : hidden.bands) {
+    char band[64];
+    std::snprintf(band, sizeof band, "%s%.0f-%.0f", truth.empty() ? "" : ",", b.low_hz, b.high_hz);
+    truth += band;
+  }
+  truth += " Hz";
+  for (size_t k = 0; k < hidden.elements.size(); ++k) truth += (k ? "," : " ") + hidden.elements[k];
   std::string added;
   for (const auto& w : summary.effects_added) added += (added.empty() ? "" : " + ") + w.substr(0, w.find(':'));
   o.time_s = summary.time_s;
-  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s...  -> %-30s error %.2fx floor  where: %s  %s%s%s%s %.1f s\n",
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s... (%s)  -> %-30s error %.2fx floor  where: %s  %s%s%s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
-              hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), added.empty() ? "(nothing added)" : added.c_str(),
+              hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), truth.c_str(), added.empty() ? "(nothing added)" : added.c_str(),
               summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : o.element_band ? "element-band " : "",
-              o.channel ? "channel " : "", o.raw_channel ? "raw-channel " : "", summary.time_s);
+              o.band_half ? "band-half " : o.final_band_half ? "final-band-half " : "", o.element ? "element " : "", o.channel ? "channel " : "", o.raw_channel ? "raw-channel " : "",
+              summary.time_s);
   if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
   std::fflush(stdout);
   return o;
@@ -353,6 +382,7 @@ int main(int argc, char** argv) {
   run(effect_free, 0, first_seed + cases + two_effects, &none);
   run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
   int outside_clean = 0, outside_added = 0, outside_band = 0, outside_element_band = 0, outside_channel = 0, outside_raw_channel = 0, outside_floor_raw_channel = 0, outside_floor = 0;
+  int outside_band_half = 0, outside_final_band_half = 0, outside_element = 0, outside_peak_and_raw = 0, outside_localised = 0;
   double outside_time = 0;
   for (int c = 0; c < outside; ++c) {
     const OutsideOutcome o = RunOutsideCase(nominal, first_seed + cases + two_effects + effect_free + three_effects + c,
@@ -365,6 +395,11 @@ int main(int argc, char** argv) {
     outside_channel += !o.at_floor && o.channel;
     outside_raw_channel += !o.at_floor && o.raw_channel;
     outside_floor_raw_channel += o.at_floor && o.raw_channel;
+    outside_band_half += !o.at_floor && o.band_half;
+    outside_final_band_half += !o.at_floor && o.final_band_half;
+    outside_element += !o.at_floor && o.element;
+    outside_peak_and_raw += !o.at_floor && o.band && (o.channel || o.raw_channel);
+    outside_localised += !o.at_floor && (o.band || o.band_half) && (o.element || o.channel || o.raw_channel);
     outside_time += o.time_s;
   }
   auto pct = [](int a, int n) { return n > 0 ? 100.0 * a / n : 0.0; };
@@ -399,10 +434,15 @@ int main(int argc, char** argv) {
   }
   if (outside) {
     std::printf("outside the catalogue (%d): no effect claimed %d (%.0f %%; added but not confirmed %d); ended at the floor %d "
-                "(nothing to localise); of the %d above it, worst band named %d, worst element's own band named %d, worst channel "
+                "(nothing to localise); of the %d above it, a band named holds the peak %d, worst element's own band named %d, worst channel "
                 "named %d (by the raw channels that stand out %d); of those at the floor, a changed raw channel named %d; mean %.1f s\n",
                 outside, outside_clean, pct(outside_clean, outside), outside_added, outside_floor, outside - outside_floor, outside_band,
                 outside_element_band, outside_channel, outside_raw_channel, outside_floor_raw_channel, outside_time / outside);
+    std::printf("  localised, of the %d above the floor: a band named is one of those holding half the change %d (of the last "
+                "diagnosis' worst bands %d), an element named one of the platform's holding half of it %d; by the peak and a raw "
+                "channel %d; by band (peak or half) and channel (element, channel or raw) %d\n",
+                outside - outside_floor, outside_band_half, outside_final_band_half, outside_element, outside_peak_and_raw,
+                outside_localised);
   }
   return 0;
 }

@@ -165,6 +165,8 @@ TEST(LoopCommand, EndsAtTheNoiseFloorOfTheShippedExample) {
   EXPECT_EQ(report["effects_added"][0].get<std::string>().rfind("payload@hexapod:", 0), 0u);
   EXPECT_EQ(report["stop_reason"].get<std::string>(), "at the noise floor");
   EXPECT_TRUE(report["confirmed"].get<bool>());
+  ASSERT_TRUE(report["missing_bands"].is_array());
+  EXPECT_TRUE(report["missing_bands"].empty());  // at the floor nothing is missing
   EXPECT_NE(report["conclusion"].get<std::string>().find("with payload@hexapod: they explain the measurement"), std::string::npos)
       << report["conclusion"];
   EXPECT_NE(r.output.find("x floor"), std::string::npos) << r.output;

@@ -1383,6 +1383,15 @@ TEST(Loop, DoesNotConfirmAnEffectThatLeavesTheModelAboveTheFloor) {
   EXPECT_NE(summary.conclusion.find("Hz ("), std::string::npos) << summary.conclusion;  // a band
   EXPECT_NE(summary.conclusion.find("are not confirmed"), std::string::npos) << summary.conclusion;
   EXPECT_EQ(summary.final_model.history.back().step, "loop: effects not confirmed (the model is not at the noise floor)");
+  // Where the cable acts: the first fit's two worst bands, named after the effects that may stand in for
+  // it; one of them is one of the bands that hold half of the cable's change.
+  ASSERT_EQ(summary.missing_bands.size(), 2u);
+  EXPECT_NE(summary.conclusion.find("Before them the error was largest in"), std::string::npos) << summary.conclusion;
+  bool held = false;
+  for (const auto& named : summary.missing_bands) {
+    for (const auto& b : c.bands) held = held || std::abs(b.centre_hz() / named.band.centre_hz() - 1) < 1e-9;
+  }
+  EXPECT_TRUE(held) << summary.conclusion;
   // The raw channels: the cable acts on the whole hexapod, and no channel stands out from the others
   // (the worst, h1, at 2.0x the floor and within 1.5x of the median channel): none is named.
   ASSERT_FALSE(summary.final_channels.empty());

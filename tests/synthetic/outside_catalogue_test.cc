@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <set>
 
 #include "stagefit/common/error.h"
 #include "stagefit/model/model_file.h"
@@ -51,6 +53,34 @@ TEST(OutsideCatalogue, CableIsScaledToTheDrawnVisibilityAndTheCaseIsReproducible
   EXPECT_NE(a.description.find("cable between the granite and the hexapod"), std::string::npos);
   ASSERT_EQ(a.measurement.num_frequencies(), b.measurement.num_frequencies());
   for (int k = 0; k < a.measurement.num_frequencies(); ++k) EXPECT_EQ(a.measurement.frf[k], b.measurement.frf[k]);
+}
+
+// A lightly damped mode changes the data most in the band that holds it: the first of the bands
+// holding half the change is the peak's.
+TEST(OutsideCatalogue, TheBandsHoldingHalfTheChangeStartWithThePeaksForAPlateMode) {
+  const auto c = MakeOutsideCatalogueCase(model::DefaultModelSpec(), 11, "plate-bending", Options());
+  ASSERT_FALSE(c.bands.empty());
+  EXPECT_GE(c.peak_hz, c.bands[0].low_hz);
+  EXPECT_LT(c.peak_hz, c.bands[0].high_hz);
+  for (const auto& b : c.bands) EXPECT_NEAR(b.high_hz / b.low_hz, std::pow(2.0, 1.0 / 3), 1e-9);  // third octaves
+}
+
+// A cable along x (y) pulls the hexapod, and the platform above it, along x (y): the platform's
+// accelerance changes most in its own direct element, Dx/Fx (Dy/Fy); along both, in one of them.
+TEST(OutsideCatalogue, ACableChangesThePlatformsElementAlongIt) {
+  std::set<std::string> axes;
+  for (uint64_t seed = 20; seed < 29; ++seed) {
+    const auto c = MakeOutsideCatalogueCase(model::DefaultModelSpec(), seed, "cable", Options());
+    ASSERT_FALSE(c.elements.empty()) << seed;
+    const bool x = c.description.find("along x,") != std::string::npos, y = c.description.find("along y,") != std::string::npos;
+    if (x) EXPECT_EQ(c.elements[0], "Dx/Fx") << c.description;
+    if (y) EXPECT_EQ(c.elements[0], "Dy/Fy") << c.description;
+    if (!x && !y) {  // along both: the direct element of one of them first (the stack is stiffer along one)
+      EXPECT_TRUE(c.elements[0] == "Dx/Fx" || c.elements[0] == "Dy/Fy") << c.description << ": " << c.elements[0];
+    }
+    axes.insert(x ? "x" : y ? "y" : "x and y");
+  }
+  EXPECT_EQ(axes.size(), 3u) << "the seeds no longer draw a cable of each kind";
 }
 
 TEST(OutsideCatalogue, DrawsAKindWhenNoneIsGivenAndRejectsAnUnknownOne) {

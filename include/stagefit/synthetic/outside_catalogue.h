@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "stagefit/measurement/frf_data.h"
+#include "stagefit/measurement/projection.h"
 #include "stagefit/model/model_spec.h"
 #include "stagefit/synthetic/synthetic_measurement.h"
 
@@ -36,6 +37,19 @@ struct OutsideCatalogueCase {
   /// largest first.
   double peak_hz = 0;
   std::vector<std::string> outputs, inputs;
+  /// The same change by third-octave band (measurement::MakeFractionalOctaveBands over the data's
+  /// range, a point in [low, high)): the fewest bands that hold half of it, largest first. A lossy
+  /// part changes a band of modes, not one frequency: this is where it acts, peak_hz where it acts most.
+  std::vector<measurement::FrequencyBand> bands;
+  /// The change in the top platform's 6x6 accelerance, "<output>/<input>" ("Dx/Fx", "Ry/My"): the data
+  /// of `with` and of the truth without the hidden part each projected by least squares onto the rigid
+  /// motion of {X} (an output channel reads d . (v + theta x r), an impact of force f along d at r is the
+  /// wrench f [d; r x d], r from the frame origin), written here from the channel geometry, not with the
+  /// library's projection. An element's change is normalised by its diagonal elements,
+  /// |dG_ij|^2 / (|G_ii| |G_jj|) summed over the frequencies (G without the hidden part), so that
+  /// translations, rotations and off-diagonal elements weigh alike: the fewest elements that hold half
+  /// of it, largest first. The comparison's compliance elements are these elements' names.
+  std::vector<std::string> elements;
   double visibility = 0;  ///< RMS change over every point in noise standard deviations
 };
 
