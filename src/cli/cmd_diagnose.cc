@@ -56,7 +56,8 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     measurement::FrfData data =
         ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
     // Faults of the test bench first (docs/diagnose.md).
-    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data);
+    nlohmann::json non_rigid = nullptr;
+    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data, &non_rigid);
     diagnose::DiagnoseOptions options;
     options.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.comparison.fmin_hz = o->fmin;
@@ -110,6 +111,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
                                {"error_baseline", summary.error_baseline},
                                {"noise_floor", NoiseFloorJson(summary.error_baseline, summary.noise_floor)},
                                {"channel_faults", channel_faults},
+                               {"non_rigid", non_rigid},
                                {"effect_found", summary.effect_found},
                                {"verdict", summary.verdict},
                                {"candidates", candidates},

@@ -79,7 +79,8 @@ void RegisterLoopCommand(CLI::App& app) {
     measurement::FrfData data =
         ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
     // Faults of the test bench before faults of the model (docs/diagnose.md, "Test bench first").
-    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data);
+    nlohmann::json non_rigid = nullptr;
+    const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data, &non_rigid);
     diagnose::LoopOptions options;
     options.diagnose.comparison.space = ResolveComparisonSpace(o->space, data);
     if (o->fmin > 0) options.diagnose.comparison.fmin_hz = o->fmin;
@@ -103,6 +104,11 @@ void RegisterLoopCommand(CLI::App& app) {
                 compare::ToString(options.diagnose.comparison.space).c_str(), o->max_rounds,
                 summary.HistoryTable().c_str());
     if (!summary.last_verdict.empty()) std::printf("\nLast diagnosis: %s\n", summary.last_verdict.c_str());
+    if (non_rigid.is_array() && !non_rigid.empty()) {
+      std::printf("\nThe channel checks found channels that do not move as one rigid body (\"not rigid\" above): the model, "
+                  "whatever its error in %s space, does not explain their readings there.\n",
+                  compare::ToString(options.diagnose.comparison.space).c_str());
+    }
     std::printf("(%.1f s)\n", summary.time_s);
     model::WriteModelFile(o->out, summary.final_model);
     std::printf("wrote %s\n", o->out.c_str());
@@ -146,6 +152,7 @@ void RegisterLoopCommand(CLI::App& app) {
                                {"missing_bands", missing_bands},
                                {"channels", ChannelErrorsJson(summary.final_channels)},
                                {"channel_faults", channel_faults},
+                               {"non_rigid", non_rigid},
                                {"last_verdict", summary.last_verdict},
                                {"final_model", o->out},
                                {"time_s", summary.time_s}};

@@ -50,9 +50,16 @@ measurement::FrfData ReadMeasurementFor(const std::string& path, const std::stri
   return measurement::ReadMeasurement(path, options);
 }
 
-nlohmann::json CheckTestBench(measurement::FrfData* data) {
+nlohmann::json CheckTestBench(measurement::FrfData* data, nlohmann::json* non_rigid) {
   const measurement::ChannelCheckResult checks = measurement::CheckChannels(*data, Eigen::Vector3d::Zero());
   std::printf("%s", checks.Report().c_str());
+  if (non_rigid) {
+    *non_rigid = nlohmann::json::array();
+    for (const auto& n : checks.non_rigid) {
+      non_rigid->push_back({{"side", n.is_input ? "impact" : "sensor"}, {"low_hz", n.low_hz}, {"high_hz", n.high_hz},
+                            {"excess", n.excess}, {"channels", n.channels}});
+    }
+  }
   nlohmann::json channel_faults = nlohmann::json::array();
   for (const auto& f : checks.findings) {
     channel_faults.push_back(

@@ -26,8 +26,10 @@ measurement::FrfData ReadMeasurementFor(const std::string& path, const std::stri
 /// Faults of the test bench first (docs/diagnose.md, "Test bench first"): measurement::CheckChannels on
 /// `data`, the findings printed with what to do; certain ones (a reversed channel, a swapped pair)
 /// repaired in `data`, the other faulty channels left out of it. Returns the findings as the reports'
-/// "channel_faults" array (empty when the channels are sound).
-nlohmann::json CheckTestBench(measurement::FrfData* data);
+/// "channel_faults" array (empty when the channels are sound); `non_rigid`, when given, gets the reports'
+/// "non_rigid" array: channels that do not move as one rigid body where no single channel is at fault
+/// (measurement::NonRigidBand; nothing is left out for them).
+nlohmann::json CheckTestBench(measurement::FrfData* data, nlohmann::json* non_rigid = nullptr);
 
 /// The non-empty items of a comma-separated list ("payload,extra-body").
 std::vector<std::string> SplitCommaList(const std::string& text);

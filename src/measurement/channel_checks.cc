@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -35,6 +36,12 @@ Eigen::MatrixXd ResidualProjector(const Eigen::MatrixXd& J) {
   return Eigen::MatrixXd::Identity(J.rows(), J.rows()) - J * PseudoInverse(J);
 }
 
+// A channel the others do not predict at all (P_cc at round-off: three vertical sensors of a body in one
+// plane observe its Dz, Rx, Ry with no redundancy) has a residual of round-off and an expected noise of
+// round-off; their ratio says nothing, and the channel is not checked (the whole-stack example's vertical
+// sensors came out 700-4000x "the noise" in a band of every body with no fault in the data).
+constexpr double kNoRedundancy = 1e-6;
+
 struct Checker {
   const FrfData& raw;
   Eigen::Vector3d origin;
@@ -63,7 +70,7 @@ struct Checker {
     }
     double x = 0;
     for (int c = 0; c < num.size(); ++c)
-      if (den(c) > 0) x = std::max(x, num(c) / den(c));
+      if (den(c) > 0 && P(c, c) > kNoRedundancy) x = std::max(x, num(c) / den(c));
     return x;
   }
 
@@ -153,7 +160,52 @@ struct Checker {
     }
   }
 
-  void CheckSide(Side s, std::vector<ChannelFinding>& out, std::vector<std::string>& notes) const {
+  // The band of the largest excess among `flagged` and the channels above the threshold in it.
+  NonRigidBand NonRigid(const Side& s, const Eigen::MatrixXd& P, const std::vector<int>& flagged) const {
+    NonRigidBand n;
+    n.is_input = s.is_input;
+    int worst_band = flagged.front();
+    for (int b : flagged) {
+      if (Excess(P, s.m, s.noise, band_freqs[b]) > Excess(P, s.m, s.noise, band_freqs[worst_band])) worst_band = b;
+    }
+    n.low_hz = std::max(raw.frequency_hz(0), bands[worst_band].low_hz);
+    n.high_hz = std::min(raw.frequency_hz(raw.num_frequencies() - 1), bands[worst_band].high_hz);
+    n.excess = Excess(P, s.m, s.noise, band_freqs[worst_band]);
+    const Eigen::MatrixXd P2 = P.cwiseAbs2();
+    Eigen::VectorXd num = Eigen::VectorXd::Zero(P.rows()), den = Eigen::VectorXd::Zero(P.rows());
+    for (int k : band_freqs[worst_band]) {
+      num += (P * s.m[k]).cwiseAbs2().rowwise().sum();
+      den += (P2 * s.noise[k]).rowwise().sum();
+    }
+    std::vector<std::pair<double, int>> above;
+    for (int c = 0; c < num.size(); ++c) {
+      if (den(c) > 0 && P(c, c) > kNoRedundancy && num(c) / den(c) > opt.excess_threshold) above.push_back({num(c) / den(c), c});
+    }
+    std::sort(above.rbegin(), above.rend());
+    for (std::size_t i = 0; i < above.size() && i < 4; ++i) n.channels.push_back(s.names[above[i].second]);
+    return n;
+  }
+
+  // The channel of `s` turned on its mount whose direction, as the other channels' rigid motion gives
+  // it (FindTurnedChannel), brings every band of `flagged` back below the threshold; empty when none.
+  // Such a channel is a fault of the set-up that the loop corrects (a sensor-geometry correction), not
+  // channels that do not move as one.
+  std::string TurnedChannelExplaining(Side s, const std::vector<int>& flagged) const {
+    const std::optional<ChannelDirectionEstimate> turned = FindTurnedChannel(raw, origin, 2.0 * M_PI / 180.0);
+    if (!turned || turned->is_impact != s.is_input) return "";
+    const auto it = std::find(s.names.begin(), s.names.end(), turned->name);
+    if (it == s.names.end()) return "";
+    s.geometry[it - s.names.begin()].direction_W = turned->estimated_W;
+    const Eigen::MatrixXd J = s.is_input ? CalcImpactJacobian(s.geometry, origin) : CalcSensorJacobian(s.geometry, origin);
+    const Eigen::MatrixXd P = ResidualProjector(J);
+    for (int b : flagged) {
+      if (Excess(P, s.m, s.noise, band_freqs[b]) > opt.excess_threshold) return "";
+    }
+    return turned->name + Format(" (%.0f degrees)", turned->angle_rad * 180.0 / M_PI);
+  }
+
+  void CheckSide(Side s, std::vector<ChannelFinding>& out, std::vector<std::string>& notes,
+                 std::vector<NonRigidBand>& non_rigid) const {
     const std::string what = s.is_input ? "impact" : "sensor";
     const double fmin = raw.frequency_hz(0), fmax = raw.frequency_hz(raw.num_frequencies() - 1);
     const std::vector<int> all = AllFreqs();
@@ -345,6 +397,17 @@ struct Checker {
         }
         continue;
       }
+      // A channel turned on its mount is no local resonance: its direction, as the others' rigid motion
+      // gives it, makes them rigid again, and the loop corrects it (a sensor-geometry correction) where
+      // leaving it out would lose it (--hidden-effects of eval_faults: a1y turned 25 degrees and a4z
+      // turned 11 degrees were named local resonances, 2 of 120).
+      const std::string turned = TurnedChannelExplaining(s, flagged_bands);
+      if (!turned.empty()) {
+        notes.push_back("the " + std::to_string(C) + " " + what + "s are not rigid in " + std::to_string(flagged_bands.size()) +
+                        " bands (worst " + Format("%.1fx", worst) + " the noise); a channel turned on its mount, " + turned +
+                        " off as the others' rigid motion gives it, makes them rigid again: the loop corrects it (sensor-geometry)");
+        return;
+      }
       // One channel off in some bands: a local resonance.
       if (best_c >= 0 && best_after_bad < opt.excess_threshold && before_bad > opt.min_improvement * best_after_bad) {
         int peak = bad.front();
@@ -373,6 +436,7 @@ struct Checker {
       notes.push_back("the " + std::to_string(C) + " " + what + "s are not rigid in " +
                       std::to_string(flagged_bands.size()) + " bands (worst " + Format("%.1fx", worst) +
                       " the noise) and no single channel explains it");
+      non_rigid.push_back(NonRigid(s, P, flagged_bands));
       return;
     }
   }
@@ -435,8 +499,19 @@ std::string ChannelCheckResult::Report() const {
     os << " (" << Format("%.0f-%.0f Hz", f.low_hz, f.high_hz) << "): " << f.evidence << "\n    what to do: " << f.action
        << "\n";
   }
+  for (const auto& n : non_rigid) os << "not rigid: " << n.Words() << "\n";
   if (!skipped_reason.empty()) os << "  note: " << skipped_reason << "\n";
   return os.str();
+}
+
+std::string NonRigidBand::Words() const {
+  std::string names;
+  for (std::size_t i = 0; i < channels.size(); ++i) names += (i ? ", " : "") + channels[i];
+  return std::string(is_input ? "the impacts" : "the sensors") + " in " + Format("%.0f-%.0f Hz", low_hz, high_hz) +
+         " (residual " + Format("%.1fx the noise", excess) + "), most " + (names.empty() ? "(none alone)" : names) +
+         ", do not move as one rigid body, and no single channel explains it: a flexible mode of the structure under them "
+         "(the plate), which the platform's compliance cannot hold; a model at the floor in compliance space does not explain "
+         "these channels' readings";
 }
 
 ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WXo, const ChannelCheckOptions& options) {
@@ -477,7 +552,7 @@ ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WX
       notes.push_back("sensors on " + body + " skipped (fewer than 7, or not observing its six DoF)");
       continue;
     }
-    ch.CheckSide(MakeSide(raw, false, idx, options.default_relative_noise), result.findings, notes);
+    ch.CheckSide(MakeSide(raw, false, idx, options.default_relative_noise), result.findings, notes, result.non_rigid);
   }
   bool inputs_ok = raw.num_inputs() >= 7;
   for (const auto& c : raw.inputs) inputs_ok = inputs_ok && c.has_geometry() && c.body == raw.inputs[0].body;
@@ -485,9 +560,16 @@ ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WX
   if (inputs_ok) {
     std::vector<int> idx;
     for (int j = 0; j < raw.num_inputs(); ++j) idx.push_back(j);
-    ch.CheckSide(MakeSide(raw, true, idx, options.default_relative_noise), result.findings, notes);
+    ch.CheckSide(MakeSide(raw, true, idx, options.default_relative_noise), result.findings, notes, result.non_rigid);
   } else {
     notes.push_back("impacts not checked (they are not 7 or more on one body observing its six DoF)");
+  }
+  // A faulty channel corrupts the residual of the other side too (a clipped sensor is in every impact's
+  // column): beside a fault, channels not rigid together are not named (16 of 50 clipped sensors of
+  // eval_faults put the impacts there); once it is fixed or left out, the checks tell.
+  if (!result.findings.empty() && !result.non_rigid.empty()) {
+    notes.push_back("channels not rigid together beside the fault are not named: check again once it is fixed");
+    result.non_rigid.clear();
   }
   for (std::size_t i = 0; i < notes.size(); ++i) result.skipped_reason += (i ? "; " : "") + notes[i];
   return result;

@@ -49,6 +49,7 @@
 #include "stagefit/common/memory.h"
 #include "stagefit/compare/residuals.h"
 #include "stagefit/diagnose/loop.h"
+#include "stagefit/measurement/channel_checks.h"
 #include "stagefit/fit/least_squares.h"
 #include "stagefit/model/model_file.h"
 #include "stagefit/synthetic/outside_catalogue.h"
@@ -79,8 +80,14 @@ struct Outcome {
   bool at_floor = false;     // final error <= 1.2 x the floor
   bool near_truth = false;   // distance to the noise-free truth <= 0.01
   bool raw_alarm = false;    // the conclusion at the floor says a raw channel stands out (none does here)
+  bool non_rigid = false;    // the channel checks find channels not rigid together (ChannelCheckResult::non_rigid)
   double time_s = 0;
 };
+
+/// The channel checks the stagefit commands run before the loop (cli::CheckTestBench).
+measurement::ChannelCheckResult CheckTestBench(const measurement::FrfData& data) {
+  return measurement::CheckChannels(data, Eigen::Vector3d::Zero());
+}
 
 // The conclusion at the floor names raw channels that stand out (diagnose::ConclusionChannels).
 bool RawChannelAlarm(const diagnose::LoopSummary& summary) {
@@ -153,6 +160,7 @@ std::optional<Outcome> RunCase(const model::ModelSpec& nominal, uint64_t seed, i
   o.at_floor = summary.history.back().error <= diagnose::kDoneTimesFloor * floor;
   o.near_truth = distance <= 0.01;
   o.raw_alarm = RawChannelAlarm(summary);
+  o.non_rigid = !CheckTestBench(hidden.measurement).non_rigid.empty();
   o.time_s = summary.time_s;
   std::printf("seed %7llu  %4.0f Hz %4d pts  %-40s -> %-40s  error %.4f = %.2fx floor %.4f  |to truth| %.4f  %s%s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies,
@@ -204,6 +212,8 @@ struct OutsideOutcome {
   bool element_band = false;  // the worst element's own worst band, named with it, holds it
   bool channel = false;  // a worst element named (or the least rigid channel) is on a changed channel
   bool raw_channel = false;  // one of the raw channels the conclusion names as standing out is
+  bool checks_band = false;     // the channel checks' band of channels not rigid together is one holding half the change or the peak
+  bool checks_channel = false;  // and a channel they name is one the hidden part changes most
   double time_s = 0;
 };
 
@@ -273,6 +283,16 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
     std::snprintf(band, sizeof band, " %.0f-%.0f Hz", named_bands[k].band.low_hz, named_bands[k].band.high_hz);
     where += band;
   }
+  const measurement::ChannelCheckResult checks = CheckTestBench(hidden.measurement);
+  for (const measurement::NonRigidBand& n : checks.non_rigid) {
+    const measurement::FrequencyBand band{n.low_hz, n.high_hz};
+    o.checks_band = o.checks_band || (hidden.peak_hz >= n.low_hz && hidden.peak_hz <= n.high_hz) || holds_half(band);
+    for (const std::string& c : n.channels) o.checks_channel = o.checks_channel || changed(c);
+    char text[96];
+    std::snprintf(text, sizeof text, " not-rigid %s %.0f-%.0f Hz", n.is_input ? "impacts" : "sensors", n.low_hz, n.high_hz);
+    where += text;
+    for (const std::string& c : n.channels) where += " " + c;
+  }
   std::string truth;  // where the change is: its bands, its platform elements
   for (const measurement::FrequencyBand& b : hidden.bands) {
     char band[64];
@@ -284,13 +304,20 @@ OutsideOutcome RunOutsideCase(const model::ModelSpec& nominal, uint64_t seed, co
   std::string added;
   for (const auto& w : summary.effects_added) added += (added.empty() ? "" : " + ") + w.substr(0, w.find(':'));
   o.time_s = summary.time_s;
-  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s... (%s)  -> %-30s error %.2fx floor  where: %s  %s%s%s%s%s%s %.1f s\n",
+  std::printf("seed %7llu  %4.0f Hz %4d pts  %-16s peak %5.0f Hz on %s... (%s)  -> %-30s error %.2fx floor  where: %s  %s%s%s%s%s%s%s %.1f s\n",
               static_cast<unsigned long long>(seed), options.fmax_hz, options.num_frequencies, hidden.kind.c_str(), hidden.peak_hz,
               hidden.outputs.empty() ? "-" : hidden.outputs[0].c_str(), truth.c_str(), added.empty() ? "(nothing added)" : added.c_str(),
               summary.history.back().error / floor, where.c_str(), o.claimed ? "CLAIMED " : o.added ? "(not confirmed) " : "", o.band ? "band " : o.element_band ? "element-band " : "",
               o.band_half ? "band-half " : o.final_band_half ? "final-band-half " : "", o.element ? "element " : "", o.channel ? "channel " : "", o.raw_channel ? "raw-channel " : "",
-              summary.time_s);
-  if (verbose) std::printf("    %s\n    %s\n%s", hidden.description.c_str(), summary.last_verdict.c_str(), summary.HistoryTable().c_str());
+              o.checks_band && o.checks_channel ? "checks-localised " : "", summary.time_s);
+  if (verbose) {
+    std::printf("    %s\n    %s\n%s    raw channels of the final model:", hidden.description.c_str(), summary.last_verdict.c_str(),
+                summary.HistoryTable().c_str());
+    for (const diagnose::ChannelError& c : summary.final_channels) {
+      std::printf(" %s (%.1fx floor, %.1fx median)", c.name.c_str(), c.times_floor, c.times_median);
+    }
+    std::printf("\n");
+  }
   std::fflush(stdout);
   return o;
 }
@@ -355,7 +382,7 @@ int main(int argc, char** argv) {
     // explained: at the floor, within 0.01 of the noise-free truth and no effect added that is not
     // hidden, whether or not every hidden one was named (an unnamed one then changes the data by less
     // than the noise lets the loop tell).
-    int n = 0, named = 0, clean = 0, floor = 0, truth = 0, done = 0, explained = 0, named_explained = 0, raw_alarms = 0;
+    int n = 0, named = 0, clean = 0, floor = 0, truth = 0, done = 0, explained = 0, named_explained = 0, raw_alarms = 0, non_rigid = 0;
     double time = 0, max_time = 0;
   };
   auto run = [&](int count, int num_effects, uint64_t seed0, Tally* t) {
@@ -372,6 +399,7 @@ int main(int argc, char** argv) {
       t->explained += !o.extra && o.at_floor && o.near_truth;
       t->named_explained += o.named_all && !o.extra && o.at_floor && o.near_truth;
       t->raw_alarms += o.raw_alarm;
+      t->non_rigid += o.non_rigid;
       t->time += o.time_s;
       t->max_time = std::max(t->max_time, o.time_s);
     }
@@ -382,6 +410,7 @@ int main(int argc, char** argv) {
   run(effect_free, 0, first_seed + cases + two_effects, &none);
   run(three_effects, 3, first_seed + cases + two_effects + effect_free, &three);
   int outside_clean = 0, outside_added = 0, outside_band = 0, outside_element_band = 0, outside_channel = 0, outside_raw_channel = 0, outside_floor_raw_channel = 0, outside_floor = 0;
+  int outside_floor_checks = 0, outside_checks = 0;
   int outside_band_half = 0, outside_final_band_half = 0, outside_element = 0, outside_peak_and_raw = 0, outside_localised = 0;
   double outside_time = 0;
   for (int c = 0; c < outside; ++c) {
@@ -396,6 +425,8 @@ int main(int argc, char** argv) {
     outside_raw_channel += !o.at_floor && o.raw_channel;
     outside_floor_raw_channel += o.at_floor && o.raw_channel;
     outside_band_half += !o.at_floor && o.band_half;
+    outside_floor_checks += o.at_floor && o.checks_band && o.checks_channel;
+    outside_checks += o.checks_band && o.checks_channel;
     outside_final_band_half += !o.at_floor && o.final_band_half;
     outside_element += !o.at_floor && o.element;
     outside_peak_and_raw += !o.at_floor && o.band && (o.channel || o.raw_channel);
@@ -431,6 +462,8 @@ int main(int argc, char** argv) {
   if (one.n + two.n + three.n + none.n) {
     std::printf("raw channels named as standing out at the floor on the catalogue and effect-free cases: %d of %d\n",
                 one.raw_alarms + two.raw_alarms + three.raw_alarms + none.raw_alarms, one.n + two.n + three.n + none.n);
+    std::printf("channels the checks find not rigid together: effect-free %d of %d, catalogue cases %d of %d\n", none.non_rigid, none.n,
+                one.non_rigid + two.non_rigid + three.non_rigid, one.n + two.n + three.n);
   }
   if (outside) {
     std::printf("outside the catalogue (%d): no effect claimed %d (%.0f %%; added but not confirmed %d); ended at the floor %d "
@@ -438,6 +471,9 @@ int main(int argc, char** argv) {
                 "named %d (by the raw channels that stand out %d); of those at the floor, a changed raw channel named %d; mean %.1f s\n",
                 outside, outside_clean, pct(outside_clean, outside), outside_added, outside_floor, outside - outside_floor, outside_band,
                 outside_element_band, outside_channel, outside_raw_channel, outside_floor_raw_channel, outside_time / outside);
+    std::printf("  the channel checks' channels not rigid together, in a band holding the peak or half the change and on a changed "
+                "channel: %d of the %d at the floor, %d of all %d\n",
+                outside_floor_checks, outside_floor, outside_checks, outside);
     std::printf("  localised, of the %d above the floor: a band named is one of those holding half the change %d (of the last "
                 "diagnosis' worst bands %d), an element named one of the platform's holding half of it %d; by the peak and a raw "
                 "channel %d; by band (peak or half) and channel (element, channel or raw) %d\n",

@@ -8,6 +8,8 @@
 
 #include "cli_test_util.h"
 #include "stagefit/measurement/measurement_file.h"
+#include "stagefit/model/model_file.h"
+#include "stagefit/synthetic/outside_catalogue.h"
 
 namespace stagefit::cli {
 using testing::RunStagefit;
@@ -74,6 +76,31 @@ TEST(ChannelChecksCli, TheLoopRepairsAReversedChannelFirst) {
   EXPECT_LT(report["noise_floor"]["error_over_floor"].get<double>(), 1.1) << r.output;
   ASSERT_EQ(report["effects_added"].size(), 1u);
   EXPECT_EQ(report["effects_added"][0].get<std::string>().rfind("payload@hexapod:", 0), 0u);
+}
+
+// The top plate bending (outside the catalogue): the loop ends at the floor in compliance space, which the
+// projection to the platform leaves blind to it; the channel checks name the band and the channels that
+// do not move as one, leave none out, and the loop says its model does not explain their readings.
+TEST(ChannelChecksCli, TheLoopNamesChannelsNotRigidTogether) {
+  auto dir = TempDir("channel-non-rigid");
+  synthetic::HiddenEffectOptions o = synthetic::EvalLoopCaseOptions(0, 150, 400);
+  o.min_visibility = 8;
+  const auto c = synthetic::MakeOutsideCatalogueCase(model::DefaultModelSpec(), 11, "plate-bending", o);
+  measurement::WriteMeasurement(dir / "plate.mat", c.measurement);
+  const auto r = RunStagefit("loop --measurement " + (dir / "plate.mat").string() + " --effects payload --max-rounds 1 --out " +
+                             (dir / "final.toml").string() + " --report " + (dir / "loop.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("not rigid: the sensors in"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("does not explain their readings there"), std::string::npos) << r.output;
+  std::ifstream in(dir / "loop.json");
+  const auto report = nlohmann::json::parse(in);
+  EXPECT_TRUE(report["channel_faults"].empty()) << report.dump(2);
+  ASSERT_EQ(report["non_rigid"].size(), 2u) << report.dump(2);
+  for (const auto& n : report["non_rigid"]) {
+    EXPECT_LE(n["low_hz"].get<double>(), c.peak_hz);
+    EXPECT_GE(n["high_hz"].get<double>(), c.peak_hz);
+    EXPECT_EQ(n["channels"].size(), 4u) << n.dump();
+  }
 }
 
 TEST(ChannelChecksCli, ExcludeChannelsOnCompareFitDiagnose) {

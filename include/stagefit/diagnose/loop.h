@@ -116,8 +116,7 @@ struct LoopSummary {
   /// rigid limits, holds): a state to resume from (LoopOptions::resume_from) to run those steps again.
   model::ModelSpec after_rounds;
   /// The model before the rounds: the first fit (with a turned channel's correction), or the state
-  /// resumed from. Where the final model's error fell most below this one's is where the effects added
-  /// did their work.
+  /// resumed from. Its worst bands are missing_bands.
   model::ModelSpec first_fit;
   std::vector<LoopStep> history;       ///< in order; history.back().error is the final model's
   std::vector<std::string> effects_added;

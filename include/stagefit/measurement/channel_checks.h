@@ -61,10 +61,24 @@ struct ChannelCheckOptions {
   int max_findings_per_side = 3;
 };
 
+/// Channels of one side that do not move rigidly together in a band where no fault of a single channel
+/// explains it: a flexible mode of the structure under several sensors or impacts (the top plate bending
+/// in a saddle moves the four vertical ones). Not a fault of the test bench, and not something the rigid platform's
+/// compliance can hold: the projection to the platform removes it, and a model that reaches the floor
+/// there still does not explain these channels' readings.
+struct NonRigidBand {
+  bool is_input = false;
+  double low_hz = 0, high_hz = 0;     ///< the band of the largest excess
+  double excess = 0;                  ///< the residual over the noise there (the checks' excess)
+  std::vector<std::string> channels;  ///< the channels above the threshold there, largest excess first (at most 4)
+  std::string Words() const;          ///< one sentence with the numbers
+};
+
 struct ChannelCheckResult {
   bool checked = false;          ///< false: skipped (see skipped_reason)
   std::string skipped_reason;
   std::vector<ChannelFinding> findings;
+  std::vector<NonRigidBand> non_rigid;  ///< at most one per side
   std::string Report() const;    ///< human-readable lines, "channels: no fault found" when none
 };
 
