@@ -1078,7 +1078,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
     // (DropUnneededEffects).
     if (options.turned_channel_deg > 0) AddTurnedChannel(spec, measurement, comparison, options, &current, &summary);
   }
-  summary.first_fit = current;
+  const model::ModelSpec first_fit = current;  // its worst bands: missing_bands
 
   const DiagnoseOptions d = LoopDiagnoseOptions(options, spec);
   // Effects the loop added and dropped again (DropUnneededEffects): not added a second time.
@@ -1310,7 +1310,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
   if (floor.known && floor.floor > 0 && !at_floor(summary.history.back().error)) {
     try {
       std::vector<compare::ElementError> none;
-      SortWorst(comparison.Evaluate(summary.first_fit), 2, 0, &summary.missing_bands, &none);
+      SortWorst(comparison.Evaluate(first_fit), 2, 0, &summary.missing_bands, &none);
     } catch (const NumericalError&) {
       // A first fit that cannot be evaluated: the conclusion names the final model's bands only.
     }

@@ -54,23 +54,32 @@ struct Checker {
   // among a few channels of little redundancy is not diluted by the noise of the others).
   static double Excess(const Eigen::MatrixXd& P, const std::vector<Eigen::MatrixXcd>& m,
                        const std::vector<Eigen::MatrixXd>& noise, const std::vector<int>& freqs) {
-    std::vector<Eigen::MatrixXcd> r;
-    r.reserve(freqs.size());
-    for (int k : freqs) r.push_back(P * m[k]);
-    return ExcessOf(P, r, noise, freqs);
+    return std::max(0.0, ChannelExcess(P, m, noise, freqs).maxCoeff());
   }
   // The same for residuals r[i] already computed at frequencies freqs[i].
   static double ExcessOf(const Eigen::MatrixXd& P, const std::vector<Eigen::MatrixXcd>& r,
                          const std::vector<Eigen::MatrixXd>& noise, const std::vector<int>& freqs) {
+    return std::max(0.0, ChannelExcessOf(P, r, noise, freqs).maxCoeff());
+  }
+  // Each channel's own excess (0 for a channel with no expected noise or no redundancy).
+  static Eigen::VectorXd ChannelExcess(const Eigen::MatrixXd& P, const std::vector<Eigen::MatrixXcd>& m,
+                                       const std::vector<Eigen::MatrixXd>& noise, const std::vector<int>& freqs) {
+    std::vector<Eigen::MatrixXcd> r;
+    r.reserve(freqs.size());
+    for (int k : freqs) r.push_back(P * m[k]);
+    return ChannelExcessOf(P, r, noise, freqs);
+  }
+  static Eigen::VectorXd ChannelExcessOf(const Eigen::MatrixXd& P, const std::vector<Eigen::MatrixXcd>& r,
+                                         const std::vector<Eigen::MatrixXd>& noise, const std::vector<int>& freqs) {
     const Eigen::MatrixXd P2 = P.cwiseAbs2();
     Eigen::VectorXd num = Eigen::VectorXd::Zero(P.rows()), den = Eigen::VectorXd::Zero(P.rows());
     for (std::size_t i = 0; i < freqs.size(); ++i) {
       num += r[i].cwiseAbs2().rowwise().sum();
       den += (P2 * noise[freqs[i]]).rowwise().sum();
     }
-    double x = 0;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(P.rows());
     for (int c = 0; c < num.size(); ++c)
-      if (den(c) > 0 && P(c, c) > kNoRedundancy) x = std::max(x, num(c) / den(c));
+      if (den(c) > 0 && P(c, c) > kNoRedundancy) x(c) = num(c) / den(c);
     return x;
   }
 
@@ -165,21 +174,21 @@ struct Checker {
     NonRigidBand n;
     n.is_input = s.is_input;
     int worst_band = flagged.front();
+    Eigen::VectorXd per_channel;
+    n.excess = -1;
     for (int b : flagged) {
-      if (Excess(P, s.m, s.noise, band_freqs[b]) > Excess(P, s.m, s.noise, band_freqs[worst_band])) worst_band = b;
+      const Eigen::VectorXd x = ChannelExcess(P, s.m, s.noise, band_freqs[b]);
+      if (x.maxCoeff() > n.excess) {
+        n.excess = x.maxCoeff();
+        worst_band = b;
+        per_channel = x;
+      }
     }
     n.low_hz = std::max(raw.frequency_hz(0), bands[worst_band].low_hz);
     n.high_hz = std::min(raw.frequency_hz(raw.num_frequencies() - 1), bands[worst_band].high_hz);
-    n.excess = Excess(P, s.m, s.noise, band_freqs[worst_band]);
-    const Eigen::MatrixXd P2 = P.cwiseAbs2();
-    Eigen::VectorXd num = Eigen::VectorXd::Zero(P.rows()), den = Eigen::VectorXd::Zero(P.rows());
-    for (int k : band_freqs[worst_band]) {
-      num += (P * s.m[k]).cwiseAbs2().rowwise().sum();
-      den += (P2 * s.noise[k]).rowwise().sum();
-    }
     std::vector<std::pair<double, int>> above;
-    for (int c = 0; c < num.size(); ++c) {
-      if (den(c) > 0 && P(c, c) > kNoRedundancy && num(c) / den(c) > opt.excess_threshold) above.push_back({num(c) / den(c), c});
+    for (int c = 0; c < per_channel.size(); ++c) {
+      if (per_channel(c) > opt.excess_threshold) above.push_back({per_channel(c), c});
     }
     std::sort(above.rbegin(), above.rend());
     for (std::size_t i = 0; i < above.size() && i < 4; ++i) n.channels.push_back(s.names[above[i].second]);
@@ -190,13 +199,14 @@ struct Checker {
   // it (FindTurnedChannel), brings every band of `flagged` back below the threshold; empty when none.
   // Such a channel is a fault of the set-up that the loop corrects (a sensor-geometry correction), not
   // channels that do not move as one.
-  std::string TurnedChannelExplaining(Side s, const std::vector<int>& flagged) const {
+  std::string TurnedChannelExplaining(const Side& s, const std::vector<int>& flagged) const {
     const std::optional<ChannelDirectionEstimate> turned = FindTurnedChannel(raw, origin, 2.0 * M_PI / 180.0);
     if (!turned || turned->is_impact != s.is_input) return "";
     const auto it = std::find(s.names.begin(), s.names.end(), turned->name);
     if (it == s.names.end()) return "";
-    s.geometry[it - s.names.begin()].direction_W = turned->estimated_W;
-    const Eigen::MatrixXd J = s.is_input ? CalcImpactJacobian(s.geometry, origin) : CalcSensorJacobian(s.geometry, origin);
+    std::vector<ChannelGeometry> geometry = s.geometry;
+    geometry[it - s.names.begin()].direction_W = turned->estimated_W;
+    const Eigen::MatrixXd J = s.is_input ? CalcImpactJacobian(geometry, origin) : CalcSensorJacobian(geometry, origin);
     const Eigen::MatrixXd P = ResidualProjector(J);
     for (int b : flagged) {
       if (Excess(P, s.m, s.noise, band_freqs[b]) > opt.excess_threshold) return "";
@@ -401,10 +411,11 @@ struct Checker {
       // gives it, makes them rigid again, and the loop corrects it (a sensor-geometry correction) where
       // leaving it out would lose it (--hidden-effects of eval_faults: a1y turned 25 degrees and a4z
       // turned 11 degrees were named local resonances, 2 of 120).
+      const std::string not_rigid = "the " + std::to_string(C) + " " + what + "s are not rigid in " +
+                                    std::to_string(flagged_bands.size()) + " bands (worst " + Format("%.1fx", worst) + " the noise)";
       const std::string turned = TurnedChannelExplaining(s, flagged_bands);
       if (!turned.empty()) {
-        notes.push_back("the " + std::to_string(C) + " " + what + "s are not rigid in " + std::to_string(flagged_bands.size()) +
-                        " bands (worst " + Format("%.1fx", worst) + " the noise); a channel turned on its mount, " + turned +
+        notes.push_back(not_rigid + "; a channel turned on its mount, " + turned +
                         " off as the others' rigid motion gives it, makes them rigid again: the loop corrects it (sensor-geometry)");
         return;
       }
@@ -433,9 +444,7 @@ struct Checker {
         Remove(s, best_c);
         continue;
       }
-      notes.push_back("the " + std::to_string(C) + " " + what + "s are not rigid in " +
-                      std::to_string(flagged_bands.size()) + " bands (worst " + Format("%.1fx", worst) +
-                      " the noise) and no single channel explains it");
+      notes.push_back(not_rigid + " and no single channel explains it");
       non_rigid.push_back(NonRigid(s, P, flagged_bands));
       return;
     }

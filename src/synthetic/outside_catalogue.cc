@@ -30,12 +30,18 @@ void AddFlexibleMode(FrfData& data, const Eigen::VectorXd& phi_out, const Eigen:
   }
 }
 
-/// The channels holding at least half their even share of `energy` (one entry per channel), largest
-/// first.
-std::vector<std::string> MainChannels(const Eigen::VectorXd& energy, const std::vector<ChannelGeometry>& channels) {
+/// The indices of `energy`, largest entry first.
+std::vector<int> LargestFirst(const Eigen::VectorXd& energy) {
   std::vector<int> order(energy.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return energy(a) > energy(b); });
+  return order;
+}
+
+/// The channels holding at least half their even share of `energy` (one entry per channel), largest
+/// first.
+std::vector<std::string> MainChannels(const Eigen::VectorXd& energy, const std::vector<ChannelGeometry>& channels) {
+  const std::vector<int> order = LargestFirst(energy);
   std::vector<std::string> names;
   const double total = energy.sum();
   for (int c : order) {
@@ -46,12 +52,9 @@ std::vector<std::string> MainChannels(const Eigen::VectorXd& energy, const std::
 
 /// The indices of the fewest entries of `energy` that hold half of its sum, largest first.
 std::vector<int> HoldingHalf(const Eigen::VectorXd& energy) {
-  std::vector<int> order(energy.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return energy(a) > energy(b); });
   std::vector<int> kept;
   double held = 0;
-  for (int i : order) {
+  for (int i : LargestFirst(energy)) {
     if (!(energy.sum() > 0) || held >= 0.5 * energy.sum()) break;
     kept.push_back(i);
     held += energy(i);

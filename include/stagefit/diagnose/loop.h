@@ -115,9 +115,6 @@ struct LoopSummary {
   /// The model as the rounds left it, before the steps after them (merges, moves, the turned channel,
   /// rigid limits, holds): a state to resume from (LoopOptions::resume_from) to run those steps again.
   model::ModelSpec after_rounds;
-  /// The model before the rounds: the first fit (with a turned channel's correction), or the state
-  /// resumed from. Its worst bands are missing_bands.
-  model::ModelSpec first_fit;
   std::vector<LoopStep> history;       ///< in order; history.back().error is the final model's
   std::vector<std::string> effects_added;
   compare::NoiseFloor noise_floor;
@@ -147,7 +144,8 @@ struct LoopSummary {
   /// sensor at 1.8x the floor, seed 63012 of eval_loop). Empty for a measurement given already
   /// projected.
   std::vector<ChannelError> final_channels;
-  /// When the final model ends above the floor: the two bands where the first fit's error was largest,
+  /// When the final model ends above the floor: the two bands where the first fit's error was largest
+  /// (the model before the rounds, with a turned channel's correction; or the state resumed from),
   /// worst first, which the conclusion names as where what is missing acts. The effects added on the way
   /// stand in for part of it, and the error they leave often lies a third octave beside it: on the
   /// cables 83532-83536 of eval_loop (development data), the first fit's two worst bands held a band of
