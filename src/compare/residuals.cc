@@ -170,6 +170,27 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   };
   const double cap = options.coherence_weight_cap;
   c.weight_cap_ = cap;
+  // Each raw point's noise variance at frequency k, to propagate through a projection (header; docs/
+  // error-metric.md §3, §8). For the noise floor: (1 - gamma^2) |H_meas|^2, whose expectation is the
+  // noise variance sigma^2 itself (|H_meas|^2 averages |H|^2 + sigma^2, and 1 - gamma^2 = sigma^2 /
+  // (|H|^2 + sigma^2)). For the weights: |H_meas|^2 / SNR^2 = sigma^2 |H_meas|^2 / |H|^2, high where the
+  // raw coherence is low, with the SNR taken at 1 / cap at least, as it is taken at cap at most: at
+  // coherence 0 it was infinite and made every projected point of its frequency weigh 0, so that a
+  // sensor's noise on an element a symmetry makes zero dropped the whole measurement. (A point measured
+  // as exactly 0 with coherence 0 tells nothing of its noise: its variance stays infinite.)
+  auto raw_noise_variances = [&](int k, Eigen::MatrixXd* var_L, Eigen::MatrixXd* var_L_floor) {
+    const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
+    var_L->resize(H_L.rows(), H_L.cols());
+    var_L_floor->resize(H_L.rows(), H_L.cols());
+    for (int o = 0; o < H_L.rows(); ++o) {
+      for (int i = 0; i < H_L.cols(); ++i) {
+        const double snr = raw_snr(k, o, i), snr_weights = std::max(snr, 1.0 / cap);
+        (*var_L)(o, i) = snr == 0.0 && H_L(o, i) == 0.0 ? std::numeric_limits<double>::infinity()
+                                                        : std::norm(H_L(o, i)) / (snr_weights * snr_weights);
+        (*var_L_floor)(o, i) = std::isfinite(snr) ? std::norm(H_L(o, i)) / (1.0 + snr * snr) : 0.0;
+      }
+    }
+  };
   c.min_element_snr_ = options.min_element_snr;
   c.measured_side_cache_ = std::make_shared<MeasuredSideCache>();
   c.weights_.assign(nf, Eigen::MatrixXd());
@@ -217,21 +238,8 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       Eigen::MatrixXd w = Eigen::MatrixXd::Ones(6, 6);
       Eigen::MatrixXd snr_k = Eigen::MatrixXd::Constant(6, 6, std::numeric_limits<double>::infinity());
       if (use_coherence) {
-        const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
-        Eigen::MatrixXd var_L(measurement.num_outputs(), measurement.num_inputs());
-        // For the noise floor: (1 - gamma^2) |H_meas|^2, whose expectation is the noise variance
-        // sigma^2 itself (|H_meas|^2 averages |H|^2 + sigma^2, and 1 - gamma^2 = sigma^2 / (|H|^2 +
-        // sigma^2)); the weights' |H_meas|^2 / SNR^2 is sigma^2 |H_meas|^2 / |H|^2, high where the raw
-        // coherence is low (docs/error-metric.md §8).
-        Eigen::MatrixXd var_L_floor(var_L.rows(), var_L.cols());
-        for (int o = 0; o < var_L.rows(); ++o) {
-          for (int i = 0; i < var_L.cols(); ++i) {
-            const double snr = raw_snr(k, o, i);
-            var_L(o, i) = snr == 0.0 ? std::numeric_limits<double>::infinity()
-                                     : std::norm(H_L(o, i)) / (snr * snr);
-            var_L_floor(o, i) = std::isfinite(snr) ? std::norm(H_L(o, i)) / (1.0 + snr * snr) : 0.0;
-          }
-        }
+        Eigen::MatrixXd var_L, var_L_floor;
+        raw_noise_variances(k, &var_L, &var_L_floor);
         const Eigen::MatrixXd var_X_floor =
             projected ? var_L_floor : Eigen::MatrixXd(P.cwiseAbs2() * var_L_floor * Q.cwiseAbs2());
         Eigen::MatrixXd var_X;
@@ -324,15 +332,8 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       Eigen::MatrixXd w = Eigen::MatrixXd::Ones(no, ni);
       Eigen::MatrixXd snr_k = Eigen::MatrixXd::Constant(no, ni, std::numeric_limits<double>::infinity());
       if (use_coherence) {
-        const Eigen::MatrixXcd& H_L = measurement.frf[rows[k]];
-        Eigen::MatrixXd var_L(H_L.rows(), H_L.cols()), var_L_floor(H_L.rows(), H_L.cols());
-        for (int o = 0; o < var_L.rows(); ++o) {
-          for (int i = 0; i < var_L.cols(); ++i) {
-            const double snr = raw_snr(k, o, i);
-            var_L(o, i) = snr == 0.0 ? std::numeric_limits<double>::infinity() : std::norm(H_L(o, i)) / (snr * snr);
-            var_L_floor(o, i) = std::isfinite(snr) ? std::norm(H_L(o, i)) / (1.0 + snr * snr) : 0.0;
-          }
-        }
+        Eigen::MatrixXd var_L, var_L_floor;
+        raw_noise_variances(k, &var_L, &var_L_floor);
         const Eigen::MatrixXd var_X = P.cwiseAbs2() * var_L, var_X_floor = P.cwiseAbs2() * var_L_floor;
         for (int a = 0; a < no; ++a) {
           for (int b = 0; b < ni; ++b) {

@@ -119,7 +119,9 @@ OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, u
   const double target = uniform(options.min_visibility, 4 * options.min_visibility);
   const FrfData without =
       CalcBruteForceFrf(base.truth, declared.outputs, declared.inputs, declared.frequency_hz, declared.quantity);
-  auto visibility = [&](const FrfData& with) { return NoiseNormalisedDifference(with, without, noise); };
+  auto visibility = [&](const FrfData& with) {
+    return NoiseNormalisedDifference(with, without, noise, options.noise_per_channel);
+  };
 
   FrfData with;
   char text[256];
@@ -186,7 +188,7 @@ OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, u
   c.description = text;
   c.visibility = visibility(with);
 
-  const auto change = NoiseNormalisedChange(with, without, noise);
+  const auto change = NoiseNormalisedChange(with, without, noise, options.noise_per_channel);
   Eigen::VectorXd per_output = Eigen::VectorXd::Zero(with.num_outputs()), per_input = Eigen::VectorXd::Zero(with.num_inputs());
   double peak = -1;
   for (int k = 0; k < with.num_frequencies(); ++k) {
@@ -223,6 +225,7 @@ OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, u
   NoiseOptions n;
   n.relative = n.absolute = noise;
   n.seed = seed * 7919 + 5;
+  n.per_channel = options.noise_per_channel;
   AddNoise(c.measurement, n);
   c.measurement.source = "outside-catalogue case " + std::to_string(seed) + " (" + c.kind + ")";
   return c;

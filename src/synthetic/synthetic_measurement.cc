@@ -166,13 +166,26 @@ FrfData CalcBruteForceFrf(const model::ModelSpec& truth, const std::vector<Chann
   return data;
 }
 
+namespace {
+
+/// Per element, the RMS of |H| over the band that scales AddNoise's absolute noise: the element's own
+/// or, with `per_channel`, that of its output channel over every input (NoiseOptions::per_channel).
+Eigen::MatrixXd AbsoluteNoiseScale(const FrfData& data, bool per_channel) {
+  const int nf = data.num_frequencies(), no = data.num_outputs(), ni = data.num_inputs();
+  Eigen::MatrixXd mean_square = Eigen::MatrixXd::Zero(no, ni);
+  for (int f = 0; f < nf; ++f) mean_square += data.frf[f].cwiseAbs2();
+  mean_square /= nf;
+  if (per_channel) mean_square = mean_square.rowwise().mean().replicate(1, ni);
+  return mean_square.cwiseSqrt();
+}
+
+}  // namespace
+
 void AddNoise(FrfData& data, const NoiseOptions& options) {
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> g(0.0, 1.0 / std::sqrt(2.0));  // complex unit variance
   const int nf = data.num_frequencies(), no = data.num_outputs(), ni = data.num_inputs();
-  Eigen::MatrixXd rms = Eigen::MatrixXd::Zero(no, ni);
-  for (int f = 0; f < nf; ++f) rms += data.frf[f].cwiseAbs2();
-  rms = (rms / nf).cwiseSqrt();
+  const Eigen::MatrixXd rms = AbsoluteNoiseScale(data, options.per_channel);
   data.coherence.assign(nf, Eigen::MatrixXd::Zero(no, ni));
   for (int f = 0; f < nf; ++f) {
     for (int i = 0; i < ni; ++i) {
@@ -390,11 +403,10 @@ if (e.name == "payload") {
   return e;
 }
 
-std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const FrfData& with, const FrfData& without, double noise) {
+std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const FrfData& with, const FrfData& without, double noise,
+                                                   bool per_channel) {
   const int nf = without.num_frequencies(), no = without.num_outputs(), ni = without.num_inputs();
-  Eigen::MatrixXd rms = Eigen::MatrixXd::Zero(no, ni);
-  for (int f = 0; f < nf; ++f) rms += without.frf[f].cwiseAbs2();
-  rms = (rms / nf).cwiseSqrt();
+  const Eigen::MatrixXd rms = AbsoluteNoiseScale(without, per_channel);
   // An element the symmetric model makes exactly zero gets no noise from AddNoise; a real test would
   // still show its channel's noise floor: 1e-3 of the strongest element's RMS.
   const double floor2 = 1e-6 * rms.maxCoeff() * rms.maxCoeff();
@@ -410,9 +422,9 @@ std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const FrfData& with, const Fr
   return change;
 }
 
-double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, double noise) {
+double NoiseNormalisedDifference(const FrfData& with, const FrfData& without, double noise, bool per_channel) {
   double sum = 0.0;
-  for (const auto& c : NoiseNormalisedChange(with, without, noise)) sum += c.sum();
+  for (const auto& c : NoiseNormalisedChange(with, without, noise, per_channel)) sum += c.sum();
   return std::sqrt(sum / (static_cast<double>(without.num_frequencies()) * without.num_outputs() * without.num_inputs()));
 }
 
@@ -481,7 +493,7 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
       std::vector<ChannelGeometry> trial_sensors = true_sensors;
       HiddenEffect e = ApplyHiddenEffect(kinds[k], rng, trial, trial_sensors);
       const FrfData with = CalcBruteForceFrf(trial, trial_sensors, impacts, f, FrfQuantity::kAccelerance);
-      e.visibility = NoiseNormalisedDifference(with, without, noise_level);
+      e.visibility = NoiseNormalisedDifference(with, without, noise_level, options.noise_per_channel);
       const bool last = attempt + 1 == draws;
       if (attempt == 0 || e.visibility > kept.visibility || (last && options.visibility_against_no_effect)) {
         kept = e;
@@ -499,6 +511,7 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
   NoiseOptions noise;
   noise.relative = noise.absolute = noise_level;
   noise.seed = seed * 7919 + 1;
+  noise.per_channel = options.noise_per_channel;
   AddNoise(c.measurement, noise);
   if (!whole_stack) c.measurement.frame_origin_W = p_WXo;
   c.measurement.source = "hidden-effect case " + std::to_string(seed);

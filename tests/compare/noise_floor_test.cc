@@ -77,25 +77,30 @@ class NoiseFloorTest : public ::testing::Test {
                                           synthetic::LogFrequencies(5.0, 500.0, 200),
                                           measurement::FrfQuantity::kAccelerance);
   }
-  measurement::FrfData Noisy(double relative, double absolute, uint64_t seed) const {
+  measurement::FrfData Noisy(double relative, double absolute, uint64_t seed, bool per_channel = false) const {
     measurement::FrfData data = clean_;
-    synthetic::AddNoise(data, {relative, absolute, seed});
+    synthetic::AddNoise(data, {relative, absolute, seed, per_channel});
     return data;
   }
   model::ModelSpec truth_;
   measurement::FrfData clean_;
 };
 
-TEST_F(NoiseFloorTest, TheTruthsErrorIsTheFloorInBothSpaces) {
-  // 20 noise draws at 2 % relative and 1 % absolute noise: the truth's error scatters about the floor
-  // with the predicted standard deviation.
+// 20 noise draws at 2 % relative and 1 % absolute noise: the truth's error scatters about the floor
+// with the predicted standard deviation. The absolute noise is per element (the element's own RMS) or
+// per channel (a sensor's floor, the same for every impact): then the elements the symmetric model
+// makes exactly zero are pure noise, with coherence 0, and the comparison must still weigh the others.
+class NoiseFloorModels : public NoiseFloorTest, public ::testing::WithParamInterface<bool> {};
+
+TEST_P(NoiseFloorModels, TheTruthsErrorIsTheFloorInBothSpaces) {
+  const bool per_channel = GetParam();
   for (ComparisonSpace space : {ComparisonSpace::kRaw, ComparisonSpace::kCompliance}) {
     ComparisonOptions options;
     options.space = space;
     std::vector<double> z;
     double floor = 0, sd = 0;
     for (uint64_t seed = 1; seed <= 20; ++seed) {
-      const Comparison c = Comparison::Create(truth_, Noisy(0.02, 0.01, seed), options);
+      const Comparison c = Comparison::Create(truth_, Noisy(0.02, 0.01, seed, per_channel), options);
       const NoiseFloor f = c.CalcNoiseFloor();
       ASSERT_TRUE(f.known);
       ASSERT_GT(f.sd, 0.0);
@@ -117,6 +122,24 @@ TEST_F(NoiseFloorTest, TheTruthsErrorIsTheFloorInBothSpaces) {
     EXPECT_GT(floor, 0.015);
     EXPECT_LT(floor, 0.2);
   }
+}
+
+INSTANTIATE_TEST_SUITE_P(NoiseFloorTest, NoiseFloorModels, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& info) { return info.param ? "PerChannel" : "PerElement"; });
+
+// One raw element measured with coherence 0 at every frequency (a sensor's noise on an element that
+// is zero, or a bad pair of channels): it is pure noise, of variance |H_meas|^2. Its weights' variance
+// |H|^2 / SNR^2 was infinite and made every projected point weigh 0 (the comparison threw: no usable
+// point); with the SNR taken at 1 / cap at least, the other elements still count.
+TEST_F(NoiseFloorTest, ARawElementWithCoherenceZeroLeavesTheOthersWeighed) {
+  const measurement::FrfData sound = Noisy(0.02, 0.01, 4);
+  measurement::FrfData data = sound;
+  for (auto& g : data.coherence) g(5, 7) = 0.0;
+  const Comparison reference = Comparison::Create(truth_, sound), c = Comparison::Create(truth_, data);
+  EXPECT_GT(c.num_points(), 0.9 * reference.num_points());
+  const NoiseFloor f = c.CalcNoiseFloor();
+  ASSERT_TRUE(f.known);
+  EXPECT_NEAR(c.Error(truth_), f.floor, 4 * f.sd);
 }
 
 TEST_F(NoiseFloorTest, AWrongModelIsManyTimesAboveTheFloor) {

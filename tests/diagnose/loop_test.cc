@@ -1288,11 +1288,12 @@ TEST(TryRunnersUpFromAsGiven, FitsTheLossFactorTheBentStiffnessesHold) {
   model::SetEffects(with_payload, {diagnosis.candidates[0].effect});
   const std::vector<LoopStep> history_with_payload = {{"add payload@hexapod", "", comparison.Error(with_payload)}};
   ASSERT_GT(history_with_payload.back().error, kBandStagesTimesFloor * floor);
-  // From the payload's model, the loss factor stays in the bent stiffnesses' basin.
+  // From the payload's model, the loss factor stays in the bent stiffnesses' basin, above the floor
+  // (2.0x until the weights took a raw SNR at 1 / cap at least; 1.36x since, docs/error-metric.md §3).
   const model::ModelSpec from_state = FitEffects(model::BaseOf(with_payload), comparison,
                                                  {with_payload.effects[0], diagnosis.candidates[2].effect},
                                                  LoopOptions().diagnose.params, RoundsFitOptions()).spec;
-  EXPECT_GT(comparison.Error(from_state), kBandStagesTimesFloor * floor);
+  EXPECT_GT(comparison.Error(from_state), kDoneTimesFloor * floor);
 
   model::ModelSpec current = with_payload;
   std::vector<LoopStep> history = history_with_payload;

@@ -106,6 +106,44 @@ TEST(AddNoise, CoherenceDropsWhereTheResponseIsSmall) {
   measurement::Validate(data);
 }
 
+// A sensor's noise floor does not know which impact excited it: with the absolute part per channel, an
+// element that is exactly zero gets its channel's noise (absolute x the RMS over the channel's row),
+// and every element of the row the same absolute standard deviation; per element it stays exactly zero.
+TEST(AddNoise, PerChannelGivesAZeroElementItsChannelsNoise) {
+  const Eigen::Vector3d X(0, 0, -0.03);
+  auto clean = CalcBruteForceFrf(model::DefaultModelSpec(), ComplianceTestSensors("hexapod", X),
+                                 ComplianceTestImpacts("hexapod", X), LogFrequencies(10, 400, 2000),
+                                 measurement::FrfQuantity::kAccelerance);
+  for (auto& h : clean.frf) h(1, 3) = 0.0;
+  double row_mean_square = 0;
+  for (const auto& h : clean.frf) row_mean_square += h.row(1).cwiseAbs2().mean();
+  row_mean_square /= clean.num_frequencies();
+
+  auto per_element = clean, per_channel = clean;
+  AddNoise(per_element, {0.0, 0.02, 5});
+  AddNoise(per_channel, {0.0, 0.02, 5, true});
+  double variance = 0;
+  for (int k = 0; k < clean.num_frequencies(); ++k) {
+    EXPECT_EQ(per_element.frf[k](1, 3), 0.0);
+    EXPECT_EQ(per_element.coherence[k](1, 3), 1.0);
+    EXPECT_EQ(per_channel.coherence[k](1, 3), 0.0);
+    variance += std::norm(per_channel.frf[k](1, 3));
+  }
+  variance /= clean.num_frequencies();
+  // 2000 complex draws: the sample variance is within 10 % of the true one (4.5 sigma).
+  EXPECT_NEAR(variance / (0.02 * 0.02 * row_mean_square), 1.0, 0.1);
+
+  // The noise-normalised change of the zero element: per channel, its change over the channel's sigma
+  // (1e-3 of the row's RMS against 2 % of it); per element, over 1e-3 of the strongest element's RMS,
+  // which makes a change far below the channel's noise look large.
+  auto with = clean;
+  for (auto& h : with.frf) h(1, 3) = 1e-3 * std::sqrt(row_mean_square);
+  const double channel = NoiseNormalisedChange(with, clean, 0.02, true)[0](1, 3);
+  const double element = NoiseNormalisedChange(with, clean, 0.02)[0](1, 3);
+  EXPECT_NEAR(channel, 1e-6 / (0.02 * 0.02), 0.01 * channel);
+  EXPECT_GT(element, 100 * channel);
+}
+
 TEST(HiddenEffectCase, IsReproducibleFromItsSeed) {
   auto a = MakeHiddenEffectCase(model::DefaultModelSpec(), 17, {});
   auto b = MakeHiddenEffectCase(model::DefaultModelSpec(), 17, {});

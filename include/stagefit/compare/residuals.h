@@ -436,8 +436,9 @@ class Comparison {
   // variance itself (Create()).
   std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
   // The raw data H_k (real and imaginary parts) and, with coherence, the raw channels' noise variance
-  // (infinite where the raw SNR is 0: the weights of a re-projected measurement come from the noise its
-  // own projection propagates), frequency after frequency: raw outputs x (raw inputs * frequencies),
+  // (|H|^2 / SNR^2, the SNR at 1 / cap at least, Create(): the weights of a re-projected measurement
+  // come from the noise its own projection propagates), frequency after frequency: raw outputs x (raw
+  // inputs * frequencies),
   // so that column k of a part seen as (outputs * inputs) x frequencies is vec(H_k). A re-projection
   // P H_k Q at every frequency is then one product by Q^T kron P rather than two small products per
   // frequency (a fit under a channel's correction re-projects at every evaluation, and its differenced

@@ -40,6 +40,10 @@ struct NoiseOptions {
   double relative = 0.01;
   double absolute = 0.01;
   uint64_t seed = 1;
+  /// The absolute part per output channel instead of per element: `absolute` times the RMS of |H| over
+  /// every input of the channel and the band. A sensor's noise floor does not know which impact excited
+  /// it, so an element that a symmetry makes (nearly) zero gets its channel's noise, not none.
+  bool per_channel = false;
 };
 void AddNoise(measurement::FrfData& data, const NoiseOptions& options);
 
@@ -103,6 +107,9 @@ struct HiddenEffectOptions {
   /// the truth with no effect (a later effect then passes on the change of the ones before it, however
   /// little it changes the data itself) and the last draw kept when none reaches min_visibility.
   bool visibility_against_no_effect = false;
+  /// The noise's absolute part per output channel (NoiseOptions::per_channel), in the measurement and
+  /// in the visibility the effects are drawn to.
+  bool noise_per_channel = false;
 };
 HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t seed, const HiddenEffectOptions& options);
 
@@ -112,13 +119,14 @@ HiddenEffectCase MakeHiddenEffectCase(const model::ModelSpec& nominal, uint64_t 
 HiddenEffectOptions EvalLoopCaseOptions(int num_effects, double fmax_hz, int num_frequencies);
 
 /// How much `with` differs from `without` against the measurement noise of AddNoise with relative =
-/// absolute = `noise`: per frequency, |H_with - H_without|^2 / sigma^2 of every element (an element
-/// the model makes exactly zero gets sigma from 1e-3 of the strongest element's RMS, as a real test's
-/// channel noise would). NoiseNormalisedDifference is the RMS of its square root over every point:
-/// the "visibility" of HiddenEffect.
+/// absolute = `noise` (and its `per_channel`): per frequency, |H_with - H_without|^2 / sigma^2 of every
+/// element (an element the model makes exactly zero gets sigma from 1e-3 of the strongest element's RMS
+/// at least, as a real test's channel noise would). NoiseNormalisedDifference is the RMS of its square
+/// root over every point: the "visibility" of HiddenEffect.
 std::vector<Eigen::MatrixXd> NoiseNormalisedChange(const measurement::FrfData& with, const measurement::FrfData& without,
-                                                   double noise);
-double NoiseNormalisedDifference(const measurement::FrfData& with, const measurement::FrfData& without, double noise);
+                                                   double noise, bool per_channel = false);
+double NoiseNormalisedDifference(const measurement::FrfData& with, const measurement::FrfData& without, double noise,
+                                 bool per_channel = false);
 
 /// Raw hammer-test time data of `truth`: for every impact, `hits_per_impact` half-sine force pulses
 /// (duration `pulse_s`, peak `peak_force_n`, start jittered), and the accelerometer records computed in
