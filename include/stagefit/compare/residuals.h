@@ -438,11 +438,11 @@ class Comparison {
   // The raw data H_k (real and imaginary parts) and, with coherence, the raw channels' noise variance
   // (|H|^2 / SNR^2, the SNR at 1 / cap at least, Create(): the weights of a re-projected measurement
   // come from the noise its own projection propagates), frequency after frequency: raw outputs x (raw
-  // inputs * frequencies),
-  // so that column k of a part seen as (outputs * inputs) x frequencies is vec(H_k). A re-projection
-  // P H_k Q at every frequency is then one product by Q^T kron P rather than two small products per
-  // frequency (a fit under a channel's correction re-projects at every evaluation, and its differenced
-  // columns two times per parameter of the correction). Shared by the copies; none without raw channels.
+  // inputs * frequencies), so that column k of a part seen as (outputs * inputs) x frequencies is
+  // vec(H_k). A re-projection P H_k Q at every frequency is then one product by Q^T kron P rather than
+  // two small products per frequency (a fit under a channel's correction re-projects at every
+  // evaluation, and its differenced columns two times per parameter of the correction). Shared by the
+  // copies; none without raw channels.
   struct RawStacked {
     Eigen::MatrixXd re, im, noise_var;  // noise_var empty without coherence
     Eigen::Index num_inputs = 0, num_frequencies = 0;
