@@ -57,6 +57,17 @@ void FitParametersAndEffects(model::ModelSpec* spec, const compare::Comparison& 
                 options.fit);
 }
 
+/// `comparison`'s error of `spec`, or +infinity when `spec` is no model. A fit's effects put on other
+/// stiffnesses than they were fitted on can make none (a coupling beside softer joints makes its joint
+/// indefinite: seed 83768 of eval_loop, where the exception ended the program from a job's thread).
+double ErrorOrInfinity(const compare::Comparison& comparison, const model::ModelSpec& spec) {
+  try {
+    return comparison.Error(spec);
+  } catch (const std::exception&) {
+    return std::numeric_limits<double>::infinity();
+  }
+}
+
 /// The model as given (its base) with `effects`, all their parameters fitted together with the model's
 /// (diagnose::FitEffects); nullopt when the fit fails.
 std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
@@ -722,13 +733,14 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
       if (!fits[i]) return;
       // Short of the round threshold within kBandStagesTimesFloor: also with the leader from its other
       // starts, where its fit may have left it in a basin the pair cannot leave.
-      double error = comparison.Error(fits[i]->spec);
+      double error = ErrorOrInfinity(comparison, fits[i]->spec);
+      if (!std::isfinite(error)) fits[i].reset();
       if (!(TimesFloor(error, floor) > options.rounds_above_times_floor && TimesFloor(error, floor) <= kBandStagesTimesFloor)) return;
       for (const model::Effect& start : leader_starts) {
         std::vector<model::Effect> restarted = effects;
         restarted[static_cast<size_t>(leader - current->effects.begin())] = start;
         if (auto fit = FitFromAsGiven(as_given, comparison, restarted, options)) {
-          if (const double e = comparison.Error(fit->spec); e < error) {
+          if (const double e = ErrorOrInfinity(comparison, fit->spec); e < error) {
             error = e;
             fits[i] = std::move(fit);
             leader_restarted[i] = 1;
