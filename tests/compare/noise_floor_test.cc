@@ -89,7 +89,7 @@ class NoiseFloorTest : public ::testing::Test {
 // 20 noise draws at 2 % relative and 1 % absolute noise: the truth's error scatters about the floor
 // with the predicted standard deviation. The absolute noise is per element (the element's own RMS) or
 // per channel (a sensor's floor, the same for every impact): then the elements the symmetric model
-// makes exactly zero are pure noise, with coherence 0, and the comparison must still weigh the others.
+// makes exactly zero are pure noise, with coherence 0, and the floor must still predict the error.
 class NoiseFloorModels : public NoiseFloorTest, public ::testing::WithParamInterface<bool> {};
 
 TEST_P(NoiseFloorModels, TheTruthsErrorIsTheFloorInBothSpaces) {

@@ -107,8 +107,8 @@ TEST(AddNoise, CoherenceDropsWhereTheResponseIsSmall) {
 }
 
 // A sensor's noise floor does not know which impact excited it: with the absolute part per channel, an
-// element that is exactly zero gets its channel's noise (absolute x the RMS over the channel's row),
-// and every element of the row the same absolute standard deviation; per element it stays exactly zero.
+// element that is exactly zero gets its channel's noise (absolute x the RMS over the channel's row) and
+// coherence 0; per element it stays exactly zero, with coherence 1.
 TEST(AddNoise, PerChannelGivesAZeroElementItsChannelsNoise) {
   const Eigen::Vector3d X(0, 0, -0.03);
   auto clean = CalcBruteForceFrf(model::DefaultModelSpec(), ComplianceTestSensors("hexapod", X),
