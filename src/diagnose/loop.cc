@@ -57,20 +57,18 @@ void FitParametersAndEffects(model::ModelSpec* spec, const compare::Comparison& 
                 options.fit);
 }
 
-/// `comparison`'s error of `spec`, or +infinity when `spec` is no model. A fit's effects put on other
-/// stiffnesses than they were fitted on can make none (a coupling beside softer joints makes its joint
-/// indefinite: seed 83768 of eval_loop, where the exception ended the program from a job's thread).
-double ErrorOrInfinity(const compare::Comparison& comparison, const model::ModelSpec& spec) {
-  try {
-    return comparison.Error(spec);
-  } catch (const std::exception&) {
-    return std::numeric_limits<double>::infinity();
-  }
-}
+/// A fit from the model as given (FitFromAsGiven) and its error.
+struct AsGivenFit {
+  EffectsFit fit;
+  double error = 0;
+};
 
 /// The model as given (its base) with `effects`, all their parameters fitted together with the model's
-/// (diagnose::FitEffects); nullopt when the fit fails.
-std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
+/// (diagnose::FitEffects), and its error; nullopt when the fit fails or its result is no model (effects
+/// fitted on the loop's stiffnesses, put on the model as given, can make none: a coupling beside softer
+/// joints than fitted makes its joint indefinite, seed 83768 of eval_loop, where the error of that
+/// result threw from a job's thread and ended the program).
+std::optional<AsGivenFit> FitFromAsGiven(const model::ModelSpec& as_given, const compare::Comparison& comparison,
                                          const std::vector<model::Effect>& effects, const LoopOptions& options) {
   EffectFitOptions eo;
   eo.max_iterations = options.fit.max_iterations;
@@ -82,13 +80,17 @@ std::optional<EffectsFit> FitFromAsGiven(const model::ModelSpec& as_given, const
     // On all 1199 frequencies of seed 45010 this refit took 10-12 s of each round beside 1-3 s for the
     // refit from the candidate's state: its last 80 of 100 iterations crawled (0.1242 -> 0.1233, where
     // 4 iterations reach 0.1241); the next round's baseline fit goes on from where it stops.
+    AsGivenFit result;
     if (const auto thinned = ThinnedComparison(comparison, options.diagnose.max_search_frequencies)) {
       const EffectsFit coarse = FitEffects(model::BaseOf(as_given), *thinned, effects, options.diagnose.params, eo);
       eo.probe_basins = false;
       eo.max_iterations = options.diagnose.finish_iterations;
-      return FitEffects(model::BaseOf(coarse.spec), comparison, coarse.effects, options.diagnose.params, eo);
+      result.fit = FitEffects(model::BaseOf(coarse.spec), comparison, coarse.effects, options.diagnose.params, eo);
+    } else {
+      result.fit = FitEffects(model::BaseOf(as_given), comparison, effects, options.diagnose.params, eo);
     }
-    return FitEffects(model::BaseOf(as_given), comparison, effects, options.diagnose.params, eo);
+    result.error = comparison.Error(result.fit.spec);
+    return result;
   } catch (const std::exception&) {
     return std::nullopt;
   }
@@ -102,7 +104,7 @@ std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_
                                                      const std::vector<model::Effect>& effects) {
   model::ModelSpec trial = current;
   double trial_error = std::numeric_limits<double>::infinity();
-  std::optional<EffectsFit> restart;
+  std::optional<AsGivenFit> restart;
   RunConcurrently({
       [&] {
         try {
@@ -114,11 +116,9 @@ std::pair<model::ModelSpec, double> RefitWithEffects(const model::ModelSpec& as_
       },
       [&] { restart = FitFromAsGiven(as_given, comparison, effects, options); },
   });
-  if (restart) {
-    if (const double e = comparison.Error(restart->spec); e < trial_error) {
-      trial = restart->spec;
-      trial_error = e;
-    }
+  if (restart && restart->error < trial_error) {
+    trial = restart->fit.spec;
+    trial_error = restart->error;
   }
   return {trial, trial_error};
 }
@@ -407,7 +407,7 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
   // in that basin (1.9x the floor), from (b) it reaches the floor.
   std::vector<model::Effect> all = current->effects;
   all.push_back(effect);
-  std::optional<EffectsFit> restart;
+  std::optional<AsGivenFit> restart;
   model::ModelSpec refitted = with;
   RunConcurrently({[&] { FitParametersAndEffects(&refitted, comparison, options); },
                    [&] { restart = FitFromAsGiven(as_given, comparison, all, options); }});
@@ -420,11 +420,10 @@ bool AddEffectAndRefit(const model::ModelSpec& as_given, const compare::Comparis
     std::snprintf(line, sizeof line, "refit: error %.5f", history->back().error);
     options.progress(line);
   }
-  const double restart_error = restart ? comparison.Error(restart->spec) : std::numeric_limits<double>::infinity();
-  if (restart && restart_error < history->back().error) {
-    history->back() = {"refit (effects and model from the model as given)", EffectsText(restart->effects), restart_error};
-    with = restart->spec;
-    if (options.progress) options.progress("refit from the model as given: error " + std::to_string(restart_error));
+  if (restart && restart->error < history->back().error) {
+    history->back() = {"refit (effects and model from the model as given)", EffectsText(restart->fit.effects), restart->error};
+    with = restart->fit.spec;
+    if (options.progress) options.progress("refit from the model as given: error " + std::to_string(restart->error));
   }
   *current = with;
   return true;
@@ -722,7 +721,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
       }
     }
   }
-  std::vector<std::optional<EffectsFit>> fits(tried.size());
+  std::vector<std::optional<AsGivenFit>> fits(tried.size());
   std::vector<char> leader_restarted(tried.size(), 0);  // not vector<bool>: written from several threads
   std::vector<std::function<void()>> jobs;
   for (size_t i = 0; i < tried.size(); ++i) {
@@ -733,15 +732,14 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
       if (!fits[i]) return;
       // Short of the round threshold within kBandStagesTimesFloor: also with the leader from its other
       // starts, where its fit may have left it in a basin the pair cannot leave.
-      double error = ErrorOrInfinity(comparison, fits[i]->spec);
-      if (!std::isfinite(error)) fits[i].reset();
+      double error = fits[i]->error;
       if (!(TimesFloor(error, floor) > options.rounds_above_times_floor && TimesFloor(error, floor) <= kBandStagesTimesFloor)) return;
       for (const model::Effect& start : leader_starts) {
         std::vector<model::Effect> restarted = effects;
         restarted[static_cast<size_t>(leader - current->effects.begin())] = start;
         if (auto fit = FitFromAsGiven(as_given, comparison, restarted, options)) {
-          if (const double e = ErrorOrInfinity(comparison, fit->spec); e < error) {
-            error = e;
+          if (fit->error < error) {
+            error = fit->error;
             fits[i] = std::move(fit);
             leader_restarted[i] = 1;
           }
@@ -754,7 +752,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
   double best_error = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < tried.size(); ++i) {
     if (!fits[i]) continue;
-    const double e = comparison.Error(fits[i]->spec);
+    const double e = fits[i]->error;
     const model::Effect& effect = tried[i]->effect;
     const double delta_bic = DeltaBic(e, before, FreeParameters(effect), n);
     if (options.progress) {
@@ -770,7 +768,7 @@ std::optional<model::Effect> TryRunnersUpFromAsGiven(const model::ModelSpec& as_
     }
   }
   if (!best) return std::nullopt;
-  *current = fits[*best]->spec;
+  *current = fits[*best]->fit.spec;
   const model::Effect added = current->effects.back();
   history->push_back({"add " + Key(added) + " beside " + Key(diagnosis.candidates[0].effect) +
                           " (fitted together from the model as given)",
