@@ -23,6 +23,7 @@ struct CompareFlags {
   std::string measurement;
   std::string space;
   std::string geometry;
+  int averages = 0;
   std::string exclude_channels;
   std::string fmin;
   std::string fmax;
@@ -113,7 +114,7 @@ void RunCompare(const CompareFlags& f) {
 
   const model::ModelSpec spec = LoadModelFromOptions(f.common);
   const measurement::FrfData data =
-      ExcludeChannelsOption(ReadMeasurementFor(f.measurement, f.geometry, spec), f.exclude_channels);
+      ExcludeChannelsOption(ReadMeasurementFor(f.measurement, f.geometry, f.averages, spec), f.exclude_channels);
   options.comparison.space = ResolveComparisonSpace(f.space, data);
   const compare::CompareSummary summary = compare::CompareModel(spec, data, options);
 
@@ -157,6 +158,7 @@ void RegisterCompareCommand(CLI::App& app) {
   AddWithOption(*command, flags->common);
   command->add_option("--measurement", flags->measurement, "measurement file (.mat, .csv, .uff)")->required();
   command->add_option("--geometry", flags->geometry, kGeometryHelp);
+  command->add_option("--averages", flags->averages, kAveragesHelp)->check(CLI::Range(2, 1000000000));
   command->add_option("--exclude-channels", flags->exclude_channels, kExcludeChannelsHelp);
   command->add_option("--space", flags->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
       ->check(CLI::IsMember({"compliance", "bodies", "raw"}));

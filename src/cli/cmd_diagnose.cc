@@ -25,6 +25,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     std::string measurement;
     std::string space;
     std::string geometry;
+    int averages = 0;
     std::string exclude_channels;
     bool no_channel_checks = false;
     std::string params = "*.k.*";
@@ -37,6 +38,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
   AddWithOption(*command, o->common);
   command->add_option("--measurement", o->measurement, "measurement file (.mat, .csv, .uff)")->required();
   command->add_option("--geometry", o->geometry, kGeometryHelp);
+  command->add_option("--averages", o->averages, kAveragesHelp)->check(CLI::Range(2, 1000000000));
   command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
   command->add_flag("--no-channel-checks", o->no_channel_checks,
                     "skip the checks of the test bench (reversed, swapped, dead, clipped, locally resonant channels)");
@@ -54,7 +56,7 @@ void RegisterDiagnoseCommand(CLI::App& app) {
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     model::ModelSpec spec = LoadModelFromOptions(o->common);
     measurement::FrfData data =
-        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
+        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, o->averages, spec), o->exclude_channels);
     // Faults of the test bench first (docs/diagnose.md).
     nlohmann::json non_rigid = nullptr;
     const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data, &non_rigid);

@@ -1,6 +1,8 @@
 // `stagefit estimate RAW --out OUT`: FRFs (H1 or H2) with coherence from raw hammer time data
 // (layout: measurements/README.md, "Raw hammer time data"), written as a measurement file.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -100,6 +102,17 @@ void RunEstimate(const EstimateFlags& f) {
   sm::WriteMeasurement(f.out, summary.frf);
   std::fputs(summary.BriefReport().c_str(), stdout);
   std::printf("wrote %s\n", f.out.c_str());
+  if (!summary.frf.averages.empty() && sm::MeasurementFormatOf(f.out) == sm::MeasurementFormat::kUff) {
+    const int fewest = *std::min_element(summary.frf.averages.begin(), summary.frf.averages.end());
+    std::printf("note: UFF 58 does not carry the number of hits averaged; give --averages %d to the commands that "
+                "read %s (compare, fit, diagnose, loop)%s, or they take its coherence as the estimate's own and put "
+                "the noise floor about %.1f times too high\n",
+                fewest, f.out.c_str(),
+                fewest == *std::max_element(summary.frf.averages.begin(), summary.frf.averages.end())
+                    ? ""
+                    : " (the inputs had different numbers of hits; that is the fewest)",
+                std::sqrt(fewest - 1.0));
+  }
 
   if (!f.common.report_path.empty()) {
     nlohmann::json hits = nlohmann::json::array();

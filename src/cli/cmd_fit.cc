@@ -102,6 +102,7 @@ void RegisterFitCommand(CLI::App& app) {
   struct Options {
     CommonOptions common;
     std::string measurement, params, recipe, solver, nlopt_algorithm, jacobian, space, out, geometry, exclude_channels;
+    int averages = 0;
     int starts = 1, max_iterations = 100, probe_rounds = 4;
     std::uint64_t seed = 1;
     double fmin_hz = 0.0, fmax_hz = 0.0;
@@ -133,6 +134,7 @@ void RegisterFitCommand(CLI::App& app) {
                                            "restart from the best probe that lowers the error (default 4; 0: none)")
                            ->check(CLI::NonNegativeNumber);
   command->add_option("--geometry", o->geometry, kGeometryHelp);
+  command->add_option("--averages", o->averages, kAveragesHelp)->check(CLI::Range(2, 1000000000));
   command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
   auto* space_option = command->add_option("--space", o->space, "comparison space: compliance (sensors on one body: the 6x6 compliance at {X}), bodies (sensors on several bodies: each body's 6 DoF at its centre of mass) or raw; default: as the measurement's geometry calls for")
                            ->check(CLI::IsMember({"compliance", "bodies", "raw"}));
@@ -182,7 +184,7 @@ void RegisterFitCommand(CLI::App& app) {
     // By default the stiffnesses and every parameter of the model's effects (model/parameters.h).
     if (default_params) recipe.params = model::WithEffectParameters(recipe.params, spec);
     const measurement::FrfData data =
-        ExcludeChannelsOption(ReadMeasurementFor(recipe.measurement, o->geometry, spec), o->exclude_channels);
+        ExcludeChannelsOption(ReadMeasurementFor(recipe.measurement, o->geometry, o->averages, spec), o->exclude_channels);
     if (!recipe.space_given) recipe.comparison.space = ResolveComparisonSpace("", data);
     const compare::Comparison comparison = compare::Comparison::Create(spec, data, recipe.comparison);
     const std::vector<model::ParameterInfo> params = model::MatchParameters(spec, recipe.params);

@@ -153,7 +153,7 @@ void RegisterFrfCommand(CLI::App& app) {
     response::ResponseQuantity quantity = response::ResponseQuantity::kAccelerance;
     std::string io_label = o->io;
     if (!o->measurement.empty()) {
-      const measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, spec);
+      const measurement::FrfData data = ReadMeasurementFor(o->measurement, o->geometry, 0, spec);
       std::vector<model::InputSpec> inputs;
       std::vector<model::OutputSpec> outputs;
       for (const auto& channel : data.outputs) {

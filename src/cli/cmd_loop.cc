@@ -30,6 +30,7 @@ void RegisterLoopCommand(CLI::App& app) {
     std::string measurement, out, out_dir, resume;
     std::string space;
     std::string geometry;
+    int averages = 0;
     std::string exclude_channels;
     bool no_channel_checks = false;
     std::string params = "*.k.*";
@@ -50,6 +51,7 @@ void RegisterLoopCommand(CLI::App& app) {
                       "beyond theirs are the loop's own (they are refitted, merged, moved or dropped as a round's); "
                       "the first fit is left out");
   command->add_option("--geometry", o->geometry, kGeometryHelp);
+  command->add_option("--averages", o->averages, kAveragesHelp)->check(CLI::Range(2, 1000000000));
   command->add_option("--exclude-channels", o->exclude_channels, kExcludeChannelsHelp);
   command->add_flag("--no-channel-checks", o->no_channel_checks,
                     "skip the checks of the test bench (reversed, swapped, dead, clipped, locally resonant channels) "
@@ -77,7 +79,7 @@ void RegisterLoopCommand(CLI::App& app) {
     if (!o->common.report_path.empty()) CheckNotAnInput(o->common.report_path, {inputs.begin(), inputs.end()});
     const model::ModelSpec spec = LoadModelFromOptions(o->common);
     measurement::FrfData data =
-        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, spec), o->exclude_channels);
+        ExcludeChannelsOption(ReadMeasurementFor(o->measurement, o->geometry, o->averages, spec), o->exclude_channels);
     // Faults of the test bench before faults of the model (docs/diagnose.md, "Test bench first").
     nlohmann::json non_rigid = nullptr;
     const nlohmann::json channel_faults = o->no_channel_checks ? nlohmann::json(nullptr) : CheckTestBench(&data, &non_rigid);

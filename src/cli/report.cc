@@ -42,9 +42,11 @@ measurement::FrfData ExcludeChannelsOption(const measurement::FrfData& data, con
   return measurement::ExcludeChannels(data, names);
 }
 
-measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec) {
+measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, int averages,
+                                        const model::ModelSpec& spec) {
   measurement::MeasurementReadOptions options;
   options.geometry = geometry;
+  options.averages = averages;
   const int frame = model::FindFrame(spec, spec.compliance_frame);
   if (frame >= 0) options.uff.node_body = spec.frames[frame].body;
   return measurement::ReadMeasurement(path, options);

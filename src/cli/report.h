@@ -20,8 +20,10 @@ model::ModelSpec LoadModelFromOptions(const CommonOptions& options);
 std::string ModelSource(const CommonOptions& options);
 
 /// The measurement of a command: `--geometry FILE.csv` (when given) over the file's own geometry; a UFF
-/// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame.
-measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, const model::ModelSpec& spec);
+/// file's node coordinates (datasets 15 / 2411) put its channels on the body of `spec`'s compliance frame;
+/// `averages` (`--averages`, 0: the file's) is MeasurementReadOptions::averages.
+measurement::FrfData ReadMeasurementFor(const std::string& path, const std::string& geometry, int averages,
+                                        const model::ModelSpec& spec);
 
 /// Faults of the test bench first (docs/diagnose.md, "Test bench first"): measurement::CheckChannels on
 /// `data`, the findings printed with what to do; certain ones (a reversed channel, a swapped pair)
@@ -45,6 +47,13 @@ inline constexpr const char* kExcludeChannelsHelp =
 inline constexpr const char* kGeometryHelp =
     "geometry CSV of the measurement's channels (kind,name,body,x,y,z,nx,ny,nz), over the file's own; default: "
     "<stem>.geometry.csv beside a .uff or .mat file, else the file's (UFF: node coordinates of datasets 15/2411)";
+
+/// Help text of the shared --averages option.
+inline constexpr const char* kAveragesHelp =
+    "the number of hits averaged for each input, when the file's coherence is their ordinary coherence and the "
+    "file does not say how many (a UFF file, data from a modal-test system); the noise floor and the weights "
+    "depend on it (docs/error-metric.md §8). Default: the file's num_averages (written by estimate), else the "
+    "coherence is taken as that of the FRF estimate itself";
 
 /// The comparison space of `--space VALUE`, or when VALUE is empty the one the measurement's geometry
 /// calls for (compare::ChooseDefaultSpace), printed with its reason.

@@ -22,6 +22,7 @@ void WriteCsvMeta(const std::filesystem::path& csv_path, const CsvMeta& meta) {
   j["file"] = csv_path.filename().string();
   for (const auto& [key, value] : meta.fields) j[key] = value;
   if (!meta.frame_origin_m.empty()) j["frame_origin_m"] = meta.frame_origin_m;
+  if (!meta.num_averages.empty()) j["num_averages"] = meta.num_averages;
   nlohmann::ordered_json units = nlohmann::ordered_json::object();
   for (const auto& [column, unit] : meta.units) units[column] = unit;
   j["units"] = units;
@@ -55,6 +56,18 @@ std::optional<CsvMeta> ReadCsvMeta(const std::filesystem::path& csv_path) {
       for (const auto& v : *it) {
         if (!v.is_number()) throw InputError("'" + path.string() + "': frame_origin_m: expected numbers");
         meta.frame_origin_m.push_back(v.get<double>());
+      }
+    } else if (key == "num_averages") {
+      for (const auto& v : it->is_array() ? *it : nlohmann::ordered_json::array()) {
+        if (!v.is_number_integer() || v.get<long long>() < 2 || v.get<long long>() > 1000000000) {
+          throw InputError("'" + path.string() + "': num_averages: " + v.dump() +
+                           ", expected whole counts >= 2 (the hits averaged per input)");
+        }
+        meta.num_averages.push_back(v.get<int>());
+      }
+      if (!it->is_array()) {
+        throw InputError("'" + path.string() + "': num_averages: " + it->dump() +
+                         ", expected an array of counts, one per input in the order the inputs first appear");
       }
     } else if (key == "notes") {
       if (!it->is_array()) throw InputError("'" + path.string() + "': notes: expected an array of strings");

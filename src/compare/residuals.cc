@@ -9,6 +9,8 @@
 #include <map>
 #include <sstream>
 
+#include <unsupported/Eigen/SpecialFunctions>
+
 #include "stagefit/common/dof.h"
 #include "stagefit/common/eigen_decomposition.h"
 #include "stagefit/common/error.h"
@@ -75,6 +77,34 @@ double SnrFromCoherence(double gamma2) {
   if (gamma2 <= 0.0) return 0.0;
   if (gamma2 >= 1.0) return std::numeric_limits<double>::infinity();
   return std::sqrt(gamma2 / (1.0 - gamma2));
+}
+
+// The degrees of freedom of each raw point's noise variance: estimated from the n hits averaged for its
+// input (FrfData::averages), the residual of n complex records about H1 has 2 (n - 1) real ones;
+// infinite when the coherence is the estimate's own (its noise taken as known).
+Eigen::MatrixXd RawDegreesOfFreedom(const FrfData& measurement) {
+  Eigen::MatrixXd dof = Eigen::MatrixXd::Constant(measurement.num_outputs(), measurement.num_inputs(),
+                                                  std::numeric_limits<double>::infinity());
+  for (int i = 0; i < static_cast<int>(measurement.averages.size()); ++i) dof.col(i).setConstant(2.0 * (measurement.averages[i] - 1));
+  return dof;
+}
+
+// The degrees of freedom of the projected variances P2 var Q2 (P2, Q2: the projection's squared
+// entries; Q2 null: no right factor), by Satterthwaite: (sum a v)^2 / sum (a v)^2 / dof.
+Eigen::MatrixXd PooledDegreesOfFreedom(const Eigen::MatrixXd& P2, const Eigen::MatrixXd& var, const Eigen::MatrixXd& dof,
+                                       const Eigen::MatrixXd* Q2) {
+  const Eigen::MatrixXd share = var.cwiseProduct(var).cwiseQuotient(dof);  // 0 where dof is infinite
+  Eigen::MatrixXd total = P2 * var, spread = P2.cwiseProduct(P2) * share;
+  if (Q2) {
+    total = total * *Q2;
+    spread = spread * Q2->cwiseProduct(*Q2);
+  }
+  Eigen::MatrixXd out(total.rows(), total.cols());
+  for (int a = 0; a < out.size(); ++a) {
+    out.data()[a] = spread.data()[a] > 0.0 ? total.data()[a] * total.data()[a] / spread.data()[a]
+                                           : std::numeric_limits<double>::infinity();
+  }
+  return out;
 }
 
 }  // namespace
@@ -162,14 +192,18 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   for (int k = 0; k < nf; ++k) c.frequency_hz_(k) = measurement.frequency_hz(rows[k]);
   c.frf_options_.lowest_frequency_hz = c.frequency_hz_.minCoeff();  // the probe check looks from here up
 
-  // Raw SNR per point (infinite = noise-free).
+  // Raw SNR per point (infinite = noise-free), from the coherence of the FRF estimate (the ordinary
+  // coherence of the records averaged, when the measurement gives their number, turned into it).
   const bool use_coherence = options.use_coherence && measurement.has_coherence();
   auto raw_snr = [&](int k, int o, int i) {
-    return use_coherence ? SnrFromCoherence(measurement.coherence[rows[k]](o, i))
+    return use_coherence ? SnrFromCoherence(measurement.estimate_coherence(rows[k], o, i))
                          : std::numeric_limits<double>::infinity();
   };
   const double cap = options.coherence_weight_cap;
   c.weight_cap_ = cap;
+  // Each raw point's degrees of freedom, when its noise is estimated from averaged hits.
+  const Eigen::MatrixXd raw_dof = RawDegreesOfFreedom(measurement);
+  const bool estimated_noise = use_coherence && !measurement.averages.empty();
   // Each raw point's noise variance at frequency k, to propagate through a projection (header; docs/
   // error-metric.md §3, §8). For the noise floor: (1 - gamma^2) |H_meas|^2, whose expectation is the
   // noise variance sigma^2 itself (|H_meas|^2 averages |H|^2 + sigma^2, and 1 - gamma^2 = sigma^2 /
@@ -252,6 +286,11 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
           raw_noise_var.push_back(var_L);
           c.raw_noise_var_floor_.push_back(var_L_floor);
         }
+        if (estimated_noise && projected) c.dof_.push_back(raw_dof);
+        if (estimated_noise && !projected) {
+          const Eigen::MatrixXd Q2 = Q.cwiseAbs2();
+          c.dof_.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, &Q2));
+        }
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
             const double sigma = std::sqrt(var_X(a, b));
@@ -310,6 +349,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
       unit.frf.assign(1, Eigen::MatrixXcd::Identity(measurement.num_outputs(), measurement.num_outputs()));
       unit.inputs.assign(measurement.num_outputs(), measurement.inputs.front());
       unit.coherence.clear();
+      unit.averages.clear();
       P = measurement::ProjectPerBody(unit, p_WBcm, measurement::InputProjection::kRaw).frf[0].real();
     }
     for (int k = 0; k < nf; ++k) c.measured_[k] = projection.frf[rows[k]];
@@ -335,6 +375,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         Eigen::MatrixXd var_L, var_L_floor;
         raw_noise_variances(k, &var_L, &var_L_floor);
         const Eigen::MatrixXd var_X = P.cwiseAbs2() * var_L, var_X_floor = P.cwiseAbs2() * var_L_floor;
+        if (estimated_noise) c.dof_.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, nullptr));
         for (int a = 0; a < no; ++a) {
           for (int b = 0; b < ni; ++b) {
             const double sigma = std::sqrt(var_X(a, b)), sigma_floor = std::sqrt(var_X_floor(a, b));
@@ -372,11 +413,13 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
           w(o, i) = std::min(snr_k(o, i), cap);
         }
       }
+      if (estimated_noise) c.dof_.push_back(raw_dof);
       c.weights_[k] = w;
       c.snr_[k] = snr_k;
     }
   }
 
+  if (estimated_noise && !c.raw_noise_var_floor_.empty()) c.raw_dof_ = raw_dof;
   // Convert to the comparison quantity.
   if (c.quantity_ != measurement.quantity) {
     for (int k = 0; k < nf; ++k) {
@@ -440,7 +483,8 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     for (int k = 0; k < nf; ++k) {
       const double w = c.weights_[k](idx.output, idx.input);
       if (w > 0.0 && std::abs(c.measured_[k](idx.output, idx.input)) > 0.0) {
-        c.points_.push_back({e, k, w, c.snr_[k](idx.output, idx.input)});
+        c.points_.push_back({e, k, w, c.snr_[k](idx.output, idx.input),
+                             c.dof_.empty() ? std::numeric_limits<double>::infinity() : c.dof_[k](idx.output, idx.input)});
         sum_w2 += w * w;
       }
     }
@@ -702,6 +746,7 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   c.measured_ = subset(measured_);
   c.weights_ = subset(weights_);
   c.snr_ = subset(snr_);
+  c.dof_ = subset(dof_);
   if (raw_) c.raw_ = raw_->OnFrequencies(kept);
   c.raw_noise_var_floor_ = subset(raw_noise_var_floor_);
   c.points_.clear();
@@ -1076,12 +1121,30 @@ LogErrorMoments ExpectedLogErrorMoments(double s) {
   return {interp(table[j].m2, table[j + 1].m2), interp(table[j].m4, table[j + 1].m4)};
 }
 
+// With x^-1 f_nu(x) = f_(nu-2)(x) / (nu - 2) for the chi-square densities:
+//     c^2 P(X < t) + nu / (nu - 2) Q((nu - 2) / 2, t / 2),   t = nu / c^2,
+// P(X < t) the regularised lower incomplete gamma P(nu / 2, t / 2), Q the upper one; at nu = 2 the
+// second term is E1(t / 2).
+double MeanSquareWeightOverSnr(double nu, double c) {
+  const double t = nu / (c * c);
+  const double capped = c * c * Eigen::numext::igamma(0.5 * nu, 0.5 * t);
+  // Below nu = 2.05 the gamma function of (nu - 2) / 2 is near its pole: E1, its limit at nu = 2
+  // (Satterthwaite's nu is never below the raw points' 2 (n - 1) >= 2).
+  const double uncapped = nu > 2.05 ? nu / (nu - 2.0) * Eigen::numext::igammac(0.5 * (nu - 2.0), 0.5 * t)
+                                    : 0.5 * nu * -std::expint(-0.5 * t);
+  return capped + uncapped;
+}
+
 namespace {
 
-/// The NoiseFloor (header of Comparison::CalcNoiseFloor()) of `count` points with weights `weight(p)`
-/// and uncapped SNRs `snr(p)`.
-template <typename Weight, typename Snr>
-NoiseFloor NoiseFloorOf(size_t count, const Weight& weight, const Snr& snr) {
+/// The NoiseFloor (header of Comparison::CalcNoiseFloor()) of `count` points with weights `weight(p)`,
+/// uncapped SNRs `snr(p)` and the degrees of freedom `dof(p)` of the variance their weights are
+/// estimated with. A weight estimated from few hits is itself noisy, and the error weighs each point's
+/// noise by it: the expected w^2 |e|^2 is the SNR^2 E[min(SNR_est, cap)^2] / SNR^2 = MeanSquareWeightOverSnr
+/// times s^2, which exceeds w^2 s^2 by (n - 1) / (n - 2) for an unpooled point of n hits below the cap
+/// (docs/error-metric.md §8). The point's SNR stands for the true one in c = cap / SNR.
+template <typename Weight, typename Snr, typename Dof>
+NoiseFloor NoiseFloorOf(size_t count, const Weight& weight, const Snr& snr, const Dof& dof, double cap) {
   NoiseFloor out;
   double sum_w2 = 0.0, sum_m2 = 0.0, sum_var = 0.0;
   for (size_t p = 0; p < count; ++p) {
@@ -1089,7 +1152,12 @@ NoiseFloor NoiseFloorOf(size_t count, const Weight& weight, const Snr& snr) {
     sum_w2 += w2;
     if (!std::isfinite(snr(p)) || w2 == 0.0) continue;  // a noise-free or uncounted point adds nothing
     const LogErrorMoments m = ExpectedLogErrorMoments(1.0 / snr(p));
-    sum_m2 += w2 * m.m2;
+    double inflation = 1.0;
+    if (std::isfinite(dof(p)) && snr(p) > 0.0) {
+      const double c = cap / snr(p);
+      inflation = MeanSquareWeightOverSnr(dof(p), c) / std::min(1.0, c * c);
+    }
+    sum_m2 += w2 * m.m2 * inflation;
     sum_var += w2 * w2 * std::max(0.0, m.m4 - m.m2 * m.m2);
     ++out.num_points;
   }
@@ -1105,7 +1173,8 @@ NoiseFloor NoiseFloorOf(size_t count, const Weight& weight, const Snr& snr) {
 NoiseFloor Comparison::CalcNoiseFloor() const {
   if (!weights_are_snr_) return {};
   return NoiseFloorOf(
-      points_.size(), [&](size_t p) { return points_[p].weight; }, [&](size_t p) { return points_[p].snr; });
+      points_.size(), [&](size_t p) { return points_[p].weight; }, [&](size_t p) { return points_[p].snr; },
+      [&](size_t p) { return points_[p].dof; }, weight_cap_);
 }
 
 NoiseFloor Comparison::CalcNoiseFloor(const model::ModelSpec& spec) const {
@@ -1123,7 +1192,17 @@ NoiseFloor Comparison::CalcNoiseFloor(const model::ModelSpec& spec) const {
     return s == 0.0 ? std::numeric_limits<double>::infinity()
                     : std::abs(side->values()[points_[p].frequency](idx.output, idx.input)) / s;
   };
-  return NoiseFloorOf(points_.size(), [&](size_t p) { return side->weights[p]; }, snr);
+  // The degrees of freedom pooled through this projection, as Create() pools them through the declared one.
+  std::vector<Eigen::MatrixXd> dof;
+  if (raw_dof_.size() > 0) {
+    for (const Eigen::MatrixXd& var : raw_noise_var_floor_) dof.push_back(PooledDegreesOfFreedom(P2, var, raw_dof_, &Q2));
+  }
+  auto dof_of = [&](size_t p) {
+    if (dof.empty()) return std::numeric_limits<double>::infinity();
+    const ElementIndex idx = used_elements_[points_[p].element];
+    return dof[points_[p].frequency](idx.output, idx.input);
+  };
+  return NoiseFloorOf(points_.size(), [&](size_t p) { return side->weights[p]; }, snr, dof_of, weight_cap_);
 }
 
 std::string NoiseFloorLine(double error, const NoiseFloor& floor) {

@@ -612,6 +612,10 @@ FrfData ExcludeChannels(const FrfData& data, const std::vector<std::string>& nam
   r.inputs.clear();
   for (int i : keep_out) r.outputs.push_back(data.outputs[i]);
   for (int j : keep_in) r.inputs.push_back(data.inputs[j]);
+  if (!data.averages.empty()) {
+    r.averages.clear();
+    for (int j : keep_in) r.averages.push_back(data.averages[j]);
+  }
   for (int k = 0; k < data.num_frequencies(); ++k) {
     Eigen::MatrixXcd h(keep_out.size(), keep_in.size());
     for (std::size_t i = 0; i < keep_out.size(); ++i)
@@ -655,6 +659,7 @@ FrfData RepairChannels(const FrfData& data, const std::vector<ChannelFinding>& f
       for (auto& c : r.coherence) {
         if (f.is_input) c.col(i).swap(c.col(k)); else c.row(i).swap(c.row(k));
       }
+      if (f.is_input && !r.averages.empty()) std::swap(r.averages[i], r.averages[k]);
     }
   }
   return r;

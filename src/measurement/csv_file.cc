@@ -408,6 +408,14 @@ FrfData ReadCsvMeasurement(const fs::path& path, bool require_geometry) {
     if (!data.frame_origin_W && meta->frame_origin_m.size() == 3) {
       data.frame_origin_W = Eigen::Vector3d(meta->frame_origin_m[0], meta->frame_origin_m[1], meta->frame_origin_m[2]);
     }
+    if (!meta->num_averages.empty()) {
+      if (static_cast<int>(meta->num_averages.size()) != data.num_inputs()) {
+        throw InputError("'" + CsvMetaPath(path).string() + "': num_averages: " + std::to_string(meta->num_averages.size()) +
+                         " counts, expected " + std::to_string(data.num_inputs()) +
+                         " (one per input, in the order the inputs first appear)");
+      }
+      data.averages = meta->num_averages;
+    }
   }
   const fs::path sidecar = GeometrySidecarPath(path);
   std::error_code ec;
@@ -428,6 +436,11 @@ void WriteCsvMeasurement(const fs::path& path, const FrfData& data) {
   CsvMeta meta = FrfCsvMeta(data.quantity, data.has_coherence());
   if (data.frame_origin_W) {
     meta.frame_origin_m = {(*data.frame_origin_W)[0], (*data.frame_origin_W)[1], (*data.frame_origin_W)[2]};
+  }
+  if (!data.averages.empty()) {
+    meta.num_averages = data.averages;
+    meta.notes.push_back("coherence: the ordinary coherence of the hits averaged; num_averages: their number per input, "
+                         "in the order the inputs first appear");
   }
   std::string out;
   out += data.has_coherence() ? "freq_hz,output,input,re,im,coherence\n"

@@ -1,5 +1,6 @@
 #include "stagefit/measurement/frf_data.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -74,6 +75,16 @@ std::string ToString(FrfQuantity quantity) {
   STAGEFIT_ASSERT(false, "unknown FrfQuantity " << static_cast<int>(quantity));
 }
 
+double EstimateCoherence(double g2, int n) {
+  if (n == 0 || g2 >= 1.0) return g2;
+  if (!(g2 > 0.0)) return 0.0;
+  return std::clamp((n * g2 - 1.0) / ((n - 1) * g2), 0.0, 1.0);
+}
+
+double FrfData::estimate_coherence(int k, int o, int i) const {
+  return EstimateCoherence(coherence[k](o, i), averages.empty() ? 0 : averages[i]);
+}
+
 void Validate(const FrfData& data) {
   const int nf = data.num_frequencies();
   const int nout = data.num_outputs();
@@ -141,6 +152,19 @@ void Validate(const FrfData& data) {
         }
       }
     }
+  }
+  if (!data.averages.empty()) {
+    if (static_cast<int>(data.averages.size()) != nin) {
+      Fail(data, "num_averages: " + std::to_string(data.averages.size()) + " counts, expected " + std::to_string(nin) +
+                     " (one per input)");
+    }
+    for (int j = 0; j < nin; ++j) {
+      if (data.averages[j] < 2) {
+        Fail(data, "num_averages(" + std::to_string(j + 1) + ") = " + std::to_string(data.averages[j]) +
+                       ", expected a count >= 2 (the ordinary coherence of one record is 1 and tells nothing of the noise)");
+      }
+    }
+    if (!data.has_coherence()) Fail(data, "num_averages: given without coherence, expected coherence with it");
   }
   ValidateChannels(data, data.outputs, "output");
   ValidateChannels(data, data.inputs, "input");

@@ -498,7 +498,19 @@ EstimationSummary EstimateFrf(const RawHammerData& data, const EstimationOptions
   frf.frequency_hz.resize(nk);
   for (int k = 0; k < nk; ++k) frf.frequency_hz(k) = (k_min + k) * df;
   frf.frf = options.estimator == FrfEstimator::kH1 ? summary.h1 : summary.h2;
-  frf.coherence = std::move(coherence);
+  // The coherence is the ordinary coherence of the hits averaged, written with their number per input
+  // (FrfData::averages): the comparison turns it into the coherence of the averaged estimate. One hit's
+  // coherence is 1 whatever the noise, so with a single hit on some input none is written.
+  const auto single = std::find_if(summary.hits_used.begin(), summary.hits_used.end(), [](int n) { return n < 2; });
+  if (single == summary.hits_used.end()) {
+    frf.coherence = std::move(coherence);
+    frf.averages = summary.hits_used;
+  } else {
+    const int j = static_cast<int>(single - summary.hits_used.begin());
+    summary.warnings.push_back("input " + std::to_string(j + 1) + " " + Quote(data.inputs[j].name) +
+                               ": one hit averaged; its coherence tells nothing of the noise, so no coherence is written "
+                               "(the noise floor is unknown)");
+  }
   frf.quantity = data.quantity;
   frf.outputs = data.outputs;
   frf.inputs = data.inputs;

@@ -627,6 +627,19 @@ class MeasurementReader {
         }
       }
     }
+    if (const Array* a = Find("num_averages")) {
+      Numeric("num_averages", *a, false);
+      const Eigen::VectorXd n = Vector("num_averages", *a, nin);
+      for (std::size_t j = 0; j < nin; ++j) {
+        if (!(n[j] >= 2.0 && n[j] == std::floor(n[j]) && n[j] < 1e9)) {
+          std::ostringstream m;
+          m << "element " << j + 1 << " = " << n[j]
+            << ", expected a whole count >= 2 (the hits averaged for input " << j + 1 << ")";
+          Fail("num_averages", m.str());
+        }
+        data.averages.push_back(static_cast<int>(n[j]));
+      }
+    }
     data.outputs.resize(nout);
     data.inputs.resize(nin);
     const auto out_names = Find("output_names") ? Names("output_names", nout) : std::vector<std::string>{};
@@ -775,6 +788,13 @@ void WriteMatMeasurement(const fs::path& path, const FrfData& data, MatVersion v
       }
     }
     arrays.push_back(c);
+  }
+  if (!data.averages.empty()) {
+    Array a;
+    a.name = "num_averages";
+    a.dims = {1, nin};
+    a.re.assign(data.averages.begin(), data.averages.end());
+    arrays.push_back(a);
   }
   std::vector<std::string> out_names, in_names;
   for (const auto& c : data.outputs) out_names.push_back(c.name);

@@ -41,6 +41,17 @@ FrfData ReadMeasurement(const std::filesystem::path& path, const MeasurementRead
       data = ReadUffMeasurement(path, options.uff);
       break;
   }
+  if (options.averages != 0) {
+    if (options.averages < 2) {
+      throw InputError("measurement '" + path.string() + "': --averages " + std::to_string(options.averages) +
+                       ", expected the number of hits averaged, >= 2");
+    }
+    if (!data.has_coherence()) {
+      throw InputError("measurement '" + path.string() + "': --averages " + std::to_string(options.averages) +
+                       " given, but the file holds no coherence, expected one with it");
+    }
+    data.averages.assign(data.num_inputs(), options.averages);
+  }
   if (!geometry.empty()) ApplyGeometryFile(geometry, &data, options.require_geometry);
   if (options.require_geometry) {
     for (const auto* channels : {&data.outputs, &data.inputs}) {

@@ -221,10 +221,12 @@ TEST(CheckChannels, SkipsDataWithoutGeometry) {
 }
 
 TEST(ExcludeChannels, DropsOutputsAndInputsAndRejectsUnknownNames) {
-  const FrfData d = Sound(12, 0.01);
+  FrfData d = Sound(12, 0.01);
+  d.averages = {2, 3, 4, 5, 6, 7, 8, 9, 10, 11};  // the hits averaged follow their inputs
   const FrfData e = ExcludeChannels(d, {"a2z", "h3"});
   ASSERT_EQ(e.num_outputs(), 11);
   ASSERT_EQ(e.num_inputs(), 9);
+  EXPECT_EQ(e.averages, (std::vector<int>{2, 3, 5, 6, 7, 8, 9, 10, 11}));
   EXPECT_EQ(e.outputs[4].name, "a2y");
   EXPECT_EQ(e.outputs[5].name, "a3x");
   EXPECT_EQ(e.inputs[2].name, "h4");

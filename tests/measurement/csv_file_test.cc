@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "measurement_test_data.h"
+#include "stagefit/common/csv_meta.h"
 
 namespace stagefit::measurement {
 namespace {
@@ -37,6 +38,22 @@ TEST_F(CsvFile, RoundTripIsBitIdentical) {
   WriteCsvMeasurement(path, data);
   EXPECT_TRUE(fs::exists(dir_ / "m.geometry.csv"));
   ExpectSameMeasurement(ReadCsvMeasurement(path, true), data);
+}
+
+// The hits averaged per input go to the meta sidecar, in the order the inputs first appear.
+TEST_F(CsvFile, NumAveragesRoundTripThroughTheSidecar) {
+  FrfData data = MakeMeasurement(33);
+  data.averages = {4, 2};
+  const fs::path path = dir_ / "avg.csv";
+  WriteCsvMeasurement(path, data);
+  ExpectSameMeasurement(ReadCsvMeasurement(path, true), data);
+  // A hand-edited sidecar with a bad count names the sidecar, the field and the count.
+  std::ofstream(CsvMetaPath(path), std::ios::trunc) << R"({"quantity": "accelerance", "num_averages": [4, 1.5]})";
+  ExpectInputError([&] { ReadCsvMeasurement(path); }, "avg.meta.json': num_averages: 1.5, expected whole counts >= 2");
+  std::ofstream(CsvMetaPath(path), std::ios::trunc) << R"({"quantity": "accelerance", "num_averages": "4 2"})";
+  ExpectInputError([&] { ReadCsvMeasurement(path); }, "num_averages: \"4 2\", expected an array of counts");
+  std::ofstream(CsvMetaPath(path), std::ios::trunc) << R"({"quantity": "accelerance", "num_averages": [4]})";
+  ExpectInputError([&] { ReadCsvMeasurement(path); }, "num_averages: 1 counts, expected 2 (one per input");
 }
 
 TEST_F(CsvFile, RoundTripWithoutGeometryOrCoherence) {

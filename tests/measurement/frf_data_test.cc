@@ -37,6 +37,29 @@ TEST(Validate, RejectsEachInconsistency) {
   check([](FrfData& d) { d.inputs[0].direction_W *= 1.01; }, "direction has length 1.01");
   check([](FrfData& d) { d.frame_origin_W = Eigen::Vector3d(NAN, 0, 0); }, "frame_origin");
   check([](FrfData& d) { for (auto& h : d.frf) h.col(1).setZero(); }, "input 2 'h2' is dead");
+  check([](FrfData& d) { d.averages = {3}; }, "num_averages: 1 counts, expected 2 (one per input)");
+  check([](FrfData& d) { d.averages = {3, 1}; }, "num_averages(2) = 1, expected a count >= 2");
+  check([](FrfData& d) { d.averages = {3, 3}; d.coherence.clear(); }, "num_averages: given without coherence");
+}
+
+// The coherence of an estimate averaged from n records, from their ordinary coherence g2: its relative
+// noise variance (1 - c) / c is (1 - g2) / ((n - 1) g2) - 1 / ... in closed form (n g2 - 1) / ((n - 1) g2).
+TEST(EstimateCoherence, IsTheCoherenceOfTheAveragedEstimate) {
+  EXPECT_EQ(EstimateCoherence(0.7, 0), 0.7);  // no count: already the estimate's
+  for (int n : {2, 3, 5, 10}) {
+    EXPECT_EQ(EstimateCoherence(1.0, n), 1.0) << n;          // noise-free records
+    EXPECT_NEAR(EstimateCoherence(1.0 / n, n), 0.0, 1e-15) << n;  // records of noise alone: E[g2] = 1 / n
+    EXPECT_EQ(EstimateCoherence(0.5 / n, n), 0.0) << n;      // below that, clamped
+    EXPECT_EQ(EstimateCoherence(0.0, n), 0.0) << n;
+    // At high coherence the estimate's SNR^2 = c / (1 - c) is (n - 1) times the records' g2 / (1 - g2),
+    // less the 1 that |H_est|^2 = |H|^2 + variance adds: c / (1 - c) = (n - 1) g2 / (1 - g2) - 1.
+    for (double g2 : {0.5, 0.9, 0.999}) {
+      const double c = EstimateCoherence(g2, n);
+      EXPECT_NEAR(c / (1.0 - c), (n - 1) * g2 / (1.0 - g2) - 1.0, 1e-9 * c / (1.0 - c)) << n << " " << g2;
+    }
+  }
+  // A worked value: n = 5, g2 = 0.8: (4 - 1) / (4 * 0.8) = 0.9375.
+  EXPECT_DOUBLE_EQ(EstimateCoherence(0.8, 5), 0.9375);
 }
 
 }  // namespace

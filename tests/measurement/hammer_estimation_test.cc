@@ -320,6 +320,62 @@ TEST(EstimateFrf, FlagsAHitThatDisagreesWithTheOthers) {
   }
 }
 
+// The estimate carries the hits it averaged (FrfData::averages), and the coherence turned with them
+// into the estimate's own (EstimateCoherence) gives the estimate's noise: (1 - c) |H_est|^2 against the
+// known sigma_H^2 of the random error above, bin by bin over 30-1000 Hz, averages to 1 (per bin it
+// scatters as a chi-square of 2 (n - 1) degrees of freedom: sd 0.5 for 5 hits, 0.01 over the ~3000
+// bins). Read as the estimate's own, the ordinary coherence of the 5 hits gives n - 1 = 4 times that.
+// The response noise is 10 times the other tests': at 0.02 it is near 1e-3 of |H| over much of the
+// band, where the sampled pulses, each off the sample grid by its own fraction, differ from hit to hit
+// by about as much, and the coherence counts that too (the ratio was 1.07, 1.41 below 200 Hz).
+TEST(EstimateFrf, TheCoherenceWithTheHitsAveragedGivesTheEstimatesNoise) {
+  const LinearSystem sdof = Sdof(40.0, 0.02);
+  TestSetup setup;
+  setup.response_noise = 0.2;
+  setup.seed = 7u;
+  const EstimationSummary s = EstimateFrf(Simulate(sdof, setup));
+  ASSERT_EQ(s.frf.averages, std::vector<int>{setup.hits});
+  double estimate = 0, ordinary = 0, actual = 0;
+  int bins = 0;
+  for (int k = 0; k < s.frf.num_frequencies(); ++k) {
+    const double f = s.frf.frequency_hz(k);
+    if (f < 30.0 || f > 1000.0 || std::abs(f - 750.0) < 20.0) continue;
+    const double sigma = setup.response_noise * std::sqrt(setup.ns) /
+                         (setup.fs * HalfSineSpectrum(f, setup.amplitude_n, setup.pulse_s) * std::sqrt(setup.hits));
+    const double h2 = std::norm(s.frf.frf[k](0, 0));
+    estimate += (1.0 - s.frf.estimate_coherence(k, 0, 0)) * h2 / (sigma * sigma);
+    ordinary += (1.0 - s.frf.coherence[k](0, 0)) / s.frf.coherence[k](0, 0) * h2 / (sigma * sigma);
+    actual += std::norm(s.frf.frf[k](0, 0) - Frf(sdof, f)) / (sigma * sigma);
+    ++bins;
+  }
+  ASSERT_GT(bins, 3000);
+  EXPECT_NEAR(actual / bins, 1.0, 0.1);  // the sigma_H of the test is the estimate's noise
+  EXPECT_NEAR(estimate / bins, 1.0, 0.05);
+  EXPECT_GT(ordinary / bins, 3.5);
+  EXPECT_LT(ordinary / bins, 4.5);
+}
+
+// One hit's coherence is 1 whatever the noise: with a single hit on an input none is written. A hit
+// left out of the averages is not counted.
+TEST(EstimateFrf, WritesNoCoherenceForOneHitAndCountsOnlyTheHitsUsed) {
+  TestSetup setup;
+  setup.response_noise = 0.01;
+  setup.hits = 1;
+  const EstimationSummary one = EstimateFrf(Simulate(Sdof(40.0, 0.02), setup));
+  EXPECT_FALSE(one.frf.has_coherence());
+  EXPECT_TRUE(one.frf.averages.empty());
+  ASSERT_FALSE(one.warnings.empty());
+  EXPECT_NE(one.warnings.back().find("input 1 'F1': one hit averaged"), std::string::npos) << one.warnings.back();
+  setup.hits = 5;
+  RawHammerData data = Simulate(Sdof(40.0, 0.02), setup);
+  data.hits[0][3] = Simulate(Sdof(45.0, 0.02), setup).hits[0][3];  // a hit on another spot
+  EstimationOptions options;
+  options.exclude_flagged = true;
+  const EstimationSummary s = EstimateFrf(data, options);
+  EXPECT_EQ(s.frf.averages, std::vector<int>{4});
+  EXPECT_EQ(s.hits_used, std::vector<int>{4});
+}
+
 // Fits H(s) = (n2 s^2 + n1 s + n0) / (s^2 + b1 s + b0) to data by linear least squares (Levy),
 // with s normalised by omega0, and returns the pole's natural frequency and damping ratio.
 ModalParameters FitSecondOrder(const FrfData& frf, double low_hz, double high_hz) {

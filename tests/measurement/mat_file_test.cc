@@ -70,6 +70,33 @@ TEST(MatFile, MeasurementRoundTripIsBitIdenticalInEveryVersion) {
   fs::remove_all(dir);
 }
 
+// The number of hits averaged per input, with the coherence they give (FrfData::averages).
+TEST(MatFile, NumAveragesRoundTripsAndBadCountsAreRefused) {
+  const fs::path dir = testing::MakeTempDir("mat_averages");
+  FrfData data = MakeMeasurement(19);
+  data.averages = {3, 5};
+  for (MatVersion version : Versions()) {
+    const fs::path path = dir / (version == MatVersion::kV5 ? "m5.mat" : "m73.mat");
+    WriteMatMeasurement(path, data, version);
+    ExpectSameMeasurement(ReadMatMeasurement(path, true), data);
+  }
+  Eigen::MatrixXcd frf(1, 2);
+  frf << 1.0, 2.0;
+  auto write = [&](const Eigen::MatrixXd& counts) -> fs::path {
+    WriteMatFile(dir / "bad.mat", {{"freq_hz", Eigen::MatrixXd(Eigen::MatrixXd::Constant(1, 1, 10.0))},
+                                   {"frf", frf},
+                                   {"coherence", Eigen::MatrixXd(Eigen::MatrixXd::Constant(1, 2, 0.9))},
+                                   {"num_averages", Eigen::MatrixXd(counts)},
+                                   {"quantity", std::string("mobility")}});
+    return dir / "bad.mat";
+  };
+  ExpectInputError([&] { ReadMatMeasurement(write(Eigen::MatrixXd(Eigen::RowVector2d(3, 2.5)))); },
+                   "variable 'num_averages': element 2 = 2.5, expected a whole count >= 2");
+  ExpectInputError([&] { ReadMatMeasurement(write(Eigen::MatrixXd(Eigen::RowVector2d(1, 3)))); }, "element 1 = 1, expected a whole count >= 2");
+  ExpectInputError([&] { ReadMatMeasurement(write(Eigen::MatrixXd(Eigen::RowVector3d(3, 3, 3)))); }, "variable 'num_averages': size 1 x 3, expected 2 x 1");
+  fs::remove_all(dir);
+}
+
 TEST(MatFile, MeasurementWithoutGeometryRoundTrips) {
   const fs::path dir = testing::MakeTempDir("mat_nogeometry");
   const FrfData data = MakeMeasurement(18, false);

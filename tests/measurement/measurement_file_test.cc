@@ -36,6 +36,31 @@ TEST(MeasurementFile, EveryFormatRoundTripsThroughTheDispatcher) {
   fs::remove_all(dir);
 }
 
+// --averages: the hits averaged, for a file that does not say (UFF 58 carries no count), over what a
+// file says; refused below 2 and for a file without coherence.
+TEST(MeasurementFile, AveragesOptionSetsOrOverridesTheCount) {
+  const fs::path dir = testing::MakeTempDir("measurement_averages");
+  const FrfData no_geometry = MakeMeasurement(42, false);
+  WriteMeasurement(dir / "m.uff", no_geometry);
+  MeasurementReadOptions options;
+  EXPECT_TRUE(ReadMeasurement(dir / "m.uff", options).averages.empty());
+  options.averages = 6;
+  EXPECT_EQ(ReadMeasurement(dir / "m.uff", options).averages, std::vector<int>(no_geometry.num_inputs(), 6));
+  FrfData counted = MakeMeasurement(42);
+  counted.averages = {3, 4};
+  WriteMeasurement(dir / "m.mat", counted);
+  EXPECT_EQ(ReadMeasurement(dir / "m.mat").averages, (std::vector<int>{3, 4}));
+  EXPECT_EQ(ReadMeasurement(dir / "m.mat", options).averages, (std::vector<int>{6, 6}));
+  options.averages = 1;
+  ExpectInputError([&] { ReadMeasurement(dir / "m.mat", options); }, "--averages 1, expected the number of hits averaged, >= 2");
+  FrfData without = MakeMeasurement(42);
+  without.coherence.clear();
+  WriteMeasurement(dir / "w.mat", without);
+  options.averages = 3;
+  ExpectInputError([&] { ReadMeasurement(dir / "w.mat", options); }, "the file holds no coherence");
+  fs::remove_all(dir);
+}
+
 TEST(MeasurementFile, UnknownExtensionIsAnInputError) {
   ExpectInputError([] { ReadMeasurement("data.xlsx"); }, "extension '.xlsx' is not a measurement format");
   ExpectInputError([] { WriteMeasurement("out", MakeMeasurement(1)); }, "expected .mat, .csv, .uff or .unv");

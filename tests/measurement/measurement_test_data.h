@@ -70,6 +70,7 @@ inline void ExpectSameMeasurement(const FrfData& a, const FrfData& b) {
   for (int k = 0; k < a.num_frequencies(); ++k) EXPECT_EQ(a.frf[k], b.frf[k]) << "frequency " << k;
   ASSERT_EQ(a.has_coherence(), b.has_coherence());
   for (std::size_t k = 0; k < a.coherence.size(); ++k) EXPECT_EQ(a.coherence[k], b.coherence[k]);
+  EXPECT_EQ(a.averages, b.averages);
   auto same = [](const ChannelGeometry& x, const ChannelGeometry& y) {
     EXPECT_EQ(x.name, y.name);
     EXPECT_EQ(x.body, y.body);

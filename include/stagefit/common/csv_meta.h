@@ -24,6 +24,7 @@ struct CsvMeta {
   std::vector<std::pair<std::string, std::string>> units;  ///< column -> unit, in column order
   std::map<std::string, std::string> fields;               ///< e.g. "quantity" -> "accelerance"
   std::vector<double> frame_origin_m;                      ///< empty or x y z, m in W
+  std::vector<int> num_averages;                           ///< empty, or the hits averaged per input (measurements)
   std::vector<std::string> notes;
 };
 

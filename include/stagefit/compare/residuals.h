@@ -178,6 +178,12 @@ struct LogErrorMoments {
 };
 LogErrorMoments ExpectedLogErrorMoments(double s);
 
+/// E[min(dof / X, c^2)] for X a chi-square of `dof` (>= 2) degrees of freedom: the mean square of a weight
+/// min(SNR_est, cap), with SNR_est^2 = SNR^2 dof / X estimated from a noise variance of `dof` degrees of
+/// freedom, over SNR^2, where c = cap / SNR (docs/error-metric.md §8). dof / (dof - 2) far below the cap
+/// (c large), c^2 far above it.
+double MeanSquareWeightOverSnr(double dof, double c);
+
 /// The error that the measurement's noise alone leaves: the error scalar of the noise-free truth
 /// against the measurement, as its coherence says (docs/error-metric.md §8).
 struct NoiseFloor {
@@ -293,9 +299,13 @@ class Comparison {
   /// The error that the measurement's noise alone leaves (header of NoiseFloor): with the relative
   /// noise s_p = 1 / SNR_p of every used point (uncapped SNR from the coherence, propagated through the
   /// projection in compliance space),
-  ///     floor^2 = sum_p w_p^2 m2(s_p) / sum_p w_p^2,
+  ///     floor^2 = sum_p w_p^2 m2(s_p) g_p / sum_p w_p^2,
   ///     sd(error^2)^2 = sum_p w_p^4 (m4(s_p) - m2(s_p)^2) / (sum_p w_p^2)^2,  sd = sd(error^2) / (2 floor).
-  /// Assumes the coherence is that of the FRF estimate (as estimate and synthesize write it).
+  /// The coherence is taken as that of the FRF estimate (synthesize's), or turned into it with the hits
+  /// averaged (FrfData::averages, estimate's: measurement::EstimateCoherence). g_p = 1, or with hits
+  /// averaged MeanSquareWeightOverSnr(nu_p, cap / SNR_p) / min(1, (cap / SNR_p)^2): each weight is then
+  /// an SNR estimated with nu_p = 2 (n - 1) degrees of freedom (pooled through the projection), and the
+  /// error weighs the noise by it (docs/error-metric.md §8).
   NoiseFloor CalcNoiseFloor() const;
   /// The floor of the measurement as `spec` is compared with it. In compliance space a model with
   /// geometry corrections is compared with the measurement re-projected under them, each point weighed
@@ -374,6 +384,9 @@ class Comparison {
     int frequency = 0;
     double weight = 0;
     double snr = 0;  // uncapped signal-to-noise ratio (infinite: noise-free)
+    // Degrees of freedom of the noise variance the point's weight is estimated with (infinite: known,
+    // as a coherence that is the estimate's own gives it; measurement::FrfData::averages).
+    double dof = std::numeric_limits<double>::infinity();
   };
 
   Comparison() = default;
@@ -419,6 +432,8 @@ class Comparison {
   std::vector<Eigen::MatrixXcd> measured_;
   std::vector<Eigen::MatrixXd> weights_;
   std::vector<Eigen::MatrixXd> snr_;  // uncapped SNR of every point (infinite: noise-free)
+  // Degrees of freedom of every point's variance estimate (Point::dof); empty when all are infinite.
+  std::vector<Eigen::MatrixXd> dof_;
   Eigen::MatrixXd significance_;
   std::vector<ElementIndex> used_elements_;
   std::vector<Point> points_;
@@ -435,6 +450,9 @@ class Comparison {
   // The same for the noise floor (Point::snr): (1 - gamma^2) |H_meas|^2, whose expectation is the noise
   // variance itself (Create()).
   std::vector<Eigen::MatrixXd> raw_noise_var_floor_;
+  // The raw points' degrees of freedom, 2 (n - 1) for the n hits averaged per input (empty: infinite),
+  // pooled through a re-projection as in Create() for the floor of a corrected model.
+  Eigen::MatrixXd raw_dof_;
   // The raw data H_k (real and imaginary parts) and, with coherence, the raw channels' noise variance
   // (|H|^2 / SNR^2, the SNR at 1 / cap at least, Create(): the weights of a re-projected measurement
   // come from the noise its own projection propagates), frequency after frequency: raw outputs x (raw

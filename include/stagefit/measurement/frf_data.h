@@ -36,6 +36,11 @@ struct FrfData {
   std::vector<Eigen::MatrixXcd> frf;                     ///< Nf matrices, each Nout x Nin
   FrfQuantity quantity = FrfQuantity::kAccelerance;
   std::vector<Eigen::MatrixXd> coherence;                ///< empty, or Nf matrices Nout x Nin in [0, 1]
+  /// Empty: `coherence` is that of the FRF estimate itself, |H|^2 / (|H|^2 + sigma^2) with sigma^2 the
+  /// estimate's noise variance (as `synthesize` writes it). Else one count per input (>= 2): the number
+  /// of hits (records) averaged for it, and `coherence` is their ordinary coherence, as `estimate` and
+  /// modal-test systems write it. EstimateCoherence() turns the one into the other.
+  std::vector<int> averages;
   std::vector<ChannelGeometry> outputs;                  ///< Nout
   std::vector<ChannelGeometry> inputs;                   ///< Nin
   std::optional<Eigen::Vector3d> frame_origin_W;         ///< origin of {X} in W, if the file gives it
@@ -45,6 +50,8 @@ struct FrfData {
   int num_outputs() const { return static_cast<int>(outputs.size()); }
   int num_inputs() const { return static_cast<int>(inputs.size()); }
   bool has_coherence() const { return !coherence.empty(); }
+  /// The coherence of the FRF estimate at frequency k, output o, input i (EstimateCoherence()).
+  double estimate_coherence(int k, int o, int i) const;
   /// Every output and every input carries its geometry.
   bool has_all_geometry() const {
     for (const auto& c : outputs) if (!c.has_geometry()) return false;
@@ -60,6 +67,7 @@ struct FrfData {
 ///  - frequencies finite, > 0 Hz and strictly increasing (a 0 Hz bin must be dropped first);
 ///  - `frf` holds Nf matrices of size Nout x Nin with finite entries;
 ///  - `coherence` empty or Nf matrices Nout x Nin with entries in [0, 1];
+///  - `averages` empty, or one count >= 2 per input, and then `coherence` present;
 ///  - channel names non-empty and unique among the outputs and among the inputs;
 ///  - every channel with geometry (non-empty body) has finite position_W and a direction_W of unit
 ///    length (|1 - |n|| <= 1e-6); a channel without geometry may carry a unit direction or zero;
@@ -67,6 +75,14 @@ struct FrfData {
 ///  - no dead channel: an output row (or input column) whose FRF is exactly zero at every frequency
 ///    and every input (output) is reported by name.
 void Validate(const FrfData& data);
+
+/// The coherence of an FRF estimate averaged from n records, from their ordinary coherence g2:
+/// (n g2 - 1) / ((n - 1) g2), clamped to [0, 1]; g2 itself for n = 0 (the coherence is already the
+/// estimate's). Why: the H1 estimate's noise variance is (1 - g2) |H_est|^2 / ((n - 1) g2) (the
+/// residual of n records about it has n - 1 degrees of freedom), and |H_est|^2 averages |H|^2 plus that
+/// variance, so that |H|^2 / (|H|^2 + variance) is the expression above (docs/error-metric.md §8). A
+/// noise-free record set (g2 = 1) stays 1; records that are noise alone (g2 about 1 / n) give 0.
+double EstimateCoherence(double g2, int n);
 
 /// Tolerance on the length of a direction vector read from a file: files print about 7 to 17
 /// significant digits, so a unit vector written in single precision is within 1e-6 of length 1.

@@ -8,6 +8,10 @@
 //     H1 = G_fx / G_ff,    H2 = G_xx / G_xf,    gamma^2 = |G_fx|^2 / (G_ff G_xx) = H1 / H2.
 // H1 is unbiased by noise on the response, H2 by noise on the force; gamma^2 (0..1) drops where noise
 // or non-linearity dominates (antiresonances, zeros of the force spectrum). With one hit gamma^2 = 1.
+// The estimate of n hits written out (EstimationSummary::frf) holds gamma^2 with n per input
+// (FrfData::averages): its noise is not gamma^2's but (1 - gamma^2) / ((n - 1) gamma^2) relative
+// (EstimateCoherence()), what the comparison's weights and noise floor take. With a single hit on
+// some input no coherence is written.
 //
 // Windows (t measured from the start of each record; t0 = start of the detected impact pulse):
 // - Force window (force only): 1 on [t0 - taper, t0 + length], half-cosine tapers of `taper` seconds
@@ -148,8 +152,9 @@ struct HitDiagnostics {
 
 /// Result of EstimateFrf().
 struct EstimationSummary {
-  /// The estimate chosen by EstimationOptions::estimator, with coherence, geometry and frame
-  /// origin of the raw data; source = the raw data's source.
+  /// The estimate chosen by EstimationOptions::estimator, with coherence and the hits averaged per
+  /// input (FrfData::averages; neither when an input has a single hit), geometry and frame origin of
+  /// the raw data; source = the raw data's source.
   FrfData frf;
   std::vector<Eigen::MatrixXcd> h1;  ///< Nf matrices Nout x Nin
   std::vector<Eigen::MatrixXcd> h2;  ///< Nf matrices Nout x Nin

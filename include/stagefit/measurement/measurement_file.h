@@ -31,6 +31,11 @@ struct MeasurementReadOptions {
   /// there is one (a .csv reads its own sidecar), else the geometry in the file (UFF: node coordinates of
   /// datasets 15 / 2411 on `uff.node_body`).
   std::filesystem::path geometry;
+  /// The number of hits (records) averaged for every input, whose ordinary coherence the file holds
+  /// (`--averages`; FrfData::averages): for files that do not say it (UFF 58, data from a modal-test
+  /// system), over what the file says. 0: the file's, else the coherence is taken as that of the FRF
+  /// estimate itself. Must be 0 or >= 2; a file without coherence is refused with it.
+  int averages = 0;
 };
 
 /// Reads a measurement, dispatching on the extension; the result has passed Validate().
