@@ -102,6 +102,11 @@ void RunEstimate(const EstimateFlags& f) {
   sm::WriteMeasurement(f.out, summary.frf);
   std::fputs(summary.BriefReport().c_str(), stdout);
   std::printf("wrote %s\n", f.out.c_str());
+  if (options.estimator == sm::FrfEstimator::kH2 && summary.frf.has_coherence()) {
+    std::printf("note: H2 is biased by noise on the responses, and the coherence does not show a bias: the noise floor "
+                "of the commands that compare takes the estimate's error as noise alone, which holds for H1 and for H2 "
+                "only where the noise is on the force (docs/error-metric.md §8)\n");
+  }
   if (!summary.frf.averages.empty() && sm::MeasurementFormatOf(f.out) == sm::MeasurementFormat::kUff) {
     const int fewest = *std::min_element(summary.frf.averages.begin(), summary.frf.averages.end());
     std::printf("note: UFF 58 does not carry the number of hits averaged; give --averages %d to the commands that "
