@@ -108,15 +108,12 @@ void RunEstimate(const EstimateFlags& f) {
                 "only where the noise is on the force (docs/error-metric.md §8)\n");
   }
   if (!summary.frf.averages.empty() && sm::MeasurementFormatOf(f.out) == sm::MeasurementFormat::kUff) {
-    const int fewest = *std::min_element(summary.frf.averages.begin(), summary.frf.averages.end());
+    const auto [fewest, most] = std::minmax_element(summary.frf.averages.begin(), summary.frf.averages.end());
     std::printf("note: UFF 58 does not carry the number of hits averaged; give --averages %d to the commands that "
                 "read %s (compare, fit, diagnose, loop)%s, or they take its coherence as the estimate's own and put "
                 "the noise floor about %.1f times too high\n",
-                fewest, f.out.c_str(),
-                fewest == *std::max_element(summary.frf.averages.begin(), summary.frf.averages.end())
-                    ? ""
-                    : " (the inputs had different numbers of hits; that is the fewest)",
-                std::sqrt(fewest - 1.0));
+                *fewest, f.out.c_str(), *fewest == *most ? "" : " (the inputs had different numbers of hits; that is the fewest)",
+                std::sqrt(*fewest - 1.0));
   }
 
   if (!f.common.report_path.empty()) {

@@ -58,16 +58,16 @@ std::optional<CsvMeta> ReadCsvMeta(const std::filesystem::path& csv_path) {
         meta.frame_origin_m.push_back(v.get<double>());
       }
     } else if (key == "num_averages") {
-      for (const auto& v : it->is_array() ? *it : nlohmann::ordered_json::array()) {
+      if (!it->is_array()) {
+        throw InputError("'" + path.string() + "': num_averages: " + it->dump() +
+                         ", expected an array of counts, one per input in the order the inputs first appear");
+      }
+      for (const auto& v : *it) {
         if (!v.is_number_integer() || v.get<long long>() < 2 || v.get<long long>() > 1000000000) {
           throw InputError("'" + path.string() + "': num_averages: " + v.dump() +
                            ", expected whole counts >= 2 (the hits averaged per input)");
         }
         meta.num_averages.push_back(v.get<int>());
-      }
-      if (!it->is_array()) {
-        throw InputError("'" + path.string() + "': num_averages: " + it->dump() +
-                         ", expected an array of counts, one per input in the order the inputs first appear");
       }
     } else if (key == "notes") {
       if (!it->is_array()) throw InputError("'" + path.string() + "': notes: expected an array of strings");

@@ -201,9 +201,11 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
   };
   const double cap = options.coherence_weight_cap;
   c.weight_cap_ = cap;
-  // Each raw point's degrees of freedom, when its noise is estimated from averaged hits.
+  // Each raw point's degrees of freedom, when its noise is estimated from averaged hits (Point::dof);
+  // where the space projects the raw noise, pooled through the projection at every frequency.
   const Eigen::MatrixXd raw_dof = RawDegreesOfFreedom(measurement);
   const bool estimated_noise = use_coherence && !measurement.averages.empty();
+  std::vector<Eigen::MatrixXd> pooled_dof;
   // Each raw point's noise variance at frequency k, to propagate through a projection (header; docs/
   // error-metric.md §3, §8). For the noise floor: (1 - gamma^2) |H_meas|^2, whose expectation is the
   // noise variance sigma^2 itself (|H_meas|^2 averages |H|^2 + sigma^2, and 1 - gamma^2 = sigma^2 /
@@ -286,10 +288,9 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
           raw_noise_var.push_back(var_L);
           c.raw_noise_var_floor_.push_back(var_L_floor);
         }
-        if (estimated_noise && projected) c.dof_.push_back(raw_dof);
         if (estimated_noise && !projected) {
           const Eigen::MatrixXd Q2 = Q.cwiseAbs2();
-          c.dof_.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, &Q2));
+          pooled_dof.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, &Q2));
         }
         for (int a = 0; a < 6; ++a) {
           for (int b = 0; b < 6; ++b) {
@@ -375,7 +376,7 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
         Eigen::MatrixXd var_L, var_L_floor;
         raw_noise_variances(k, &var_L, &var_L_floor);
         const Eigen::MatrixXd var_X = P.cwiseAbs2() * var_L, var_X_floor = P.cwiseAbs2() * var_L_floor;
-        if (estimated_noise) c.dof_.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, nullptr));
+        if (estimated_noise) pooled_dof.push_back(PooledDegreesOfFreedom(P.cwiseAbs2(), var_L_floor, raw_dof, nullptr));
         for (int a = 0; a < no; ++a) {
           for (int b = 0; b < ni; ++b) {
             const double sigma = std::sqrt(var_X(a, b)), sigma_floor = std::sqrt(var_X_floor(a, b));
@@ -413,7 +414,6 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
           w(o, i) = std::min(snr_k(o, i), cap);
         }
       }
-      if (estimated_noise) c.dof_.push_back(raw_dof);
       c.weights_[k] = w;
       c.snr_[k] = snr_k;
     }
@@ -483,8 +483,8 @@ Comparison Comparison::Create(const model::ModelSpec& spec, const measurement::F
     for (int k = 0; k < nf; ++k) {
       const double w = c.weights_[k](idx.output, idx.input);
       if (w > 0.0 && std::abs(c.measured_[k](idx.output, idx.input)) > 0.0) {
-        c.points_.push_back({e, k, w, c.snr_[k](idx.output, idx.input),
-                             c.dof_.empty() ? std::numeric_limits<double>::infinity() : c.dof_[k](idx.output, idx.input)});
+        const double dof = pooled_dof.empty() ? raw_dof(idx.output, idx.input) : pooled_dof[k](idx.output, idx.input);
+        c.points_.push_back({e, k, w, c.snr_[k](idx.output, idx.input), dof});
         sum_w2 += w * w;
       }
     }
@@ -746,7 +746,6 @@ Comparison Comparison::OnFrequencies(const std::vector<int>& kept) const {
   c.measured_ = subset(measured_);
   c.weights_ = subset(weights_);
   c.snr_ = subset(snr_);
-  c.dof_ = subset(dof_);
   if (raw_) c.raw_ = raw_->OnFrequencies(kept);
   c.raw_noise_var_floor_ = subset(raw_noise_var_floor_);
   c.points_.clear();

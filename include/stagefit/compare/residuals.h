@@ -432,8 +432,6 @@ class Comparison {
   std::vector<Eigen::MatrixXcd> measured_;
   std::vector<Eigen::MatrixXd> weights_;
   std::vector<Eigen::MatrixXd> snr_;  // uncapped SNR of every point (infinite: noise-free)
-  // Degrees of freedom of every point's variance estimate (Point::dof); empty when all are infinite.
-  std::vector<Eigen::MatrixXd> dof_;
   Eigen::MatrixXd significance_;
   std::vector<ElementIndex> used_elements_;
   std::vector<Point> points_;
