@@ -291,7 +291,54 @@ std::string ChannelWords(const std::vector<ChannelError>& channels) {
   return text;
 }
 
-std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz) {
+std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(const model::ModelSpec& spec,
+                                                                          const measurement::FrfData& measurement,
+                                                                          const Eigen::Vector3d& p_WXo, double fmin_hz,
+                                                                          double fmax_hz) {
+  try {
+    return measurement::EstimateChannelDirections(compare::WithGeometryCorrections(measurement, spec.geometry_corrections), p_WXo,
+                                                  fmin_hz, fmax_hz);
+  } catch (const InputError&) {
+    return {};  // no raw channels with geometry: nothing to say
+  }
+}
+
+std::string TurnAgainstTheChannels(const model::ModelSpec& baseline, const model::Effect& effect,
+                                   const std::vector<measurement::ChannelDirectionEstimate>& directions) {
+  if (!model::FindEffectDefinition(effect.name).measured_side_only) return {};
+  const auto estimate = std::find_if(directions.begin(), directions.end(),
+                                     [&](const measurement::ChannelDirectionEstimate& d) { return d.name == effect.location; });
+  if (estimate == directions.end() || !estimate->estimable) return {};
+  // The turn the effect gives its channel in the model, applied to the direction the data declare.
+  const auto direction_of = [&](const model::ModelSpec& spec) -> std::optional<Eigen::Vector3d> {
+    for (const auto* list : {&spec.sensors, &spec.excitations}) {
+      for (const auto& p : *list) {
+        if (p.name == effect.location) return p.direction_W.normalized();
+      }
+    }
+    return std::nullopt;
+  };
+  model::ModelSpec with = baseline;
+  try {
+    model::ApplyEffect(with, effect);
+  } catch (const InputError&) {
+    return {};
+  }
+  const std::optional<Eigen::Vector3d> before = direction_of(baseline), after = direction_of(with);
+  if (!before || !after || !(before->cross(*after).norm() > 0.0)) return {};
+  const Eigen::Vector3d turned = Eigen::Quaterniond::FromTwoVectors(*before, *after) * estimate->declared_W;
+  const double declared = estimate->declared_residual_share, along = estimate->ResidualShareAlong(turned);
+  if (!(along > kTurnAgainstChannelsRatio * declared)) return {};
+  const double angle = std::atan2(before->cross(*after).norm(), before->dot(*after));
+  return FormatText("it turns %s by %.1f deg, which leaves %.3g of its readings unexplained by the other %s' rigid motion against %.3g "
+                "as declared (%.3g with the direction they give it, %.1f deg from the declared): the channels say it is not "
+                "turned so",
+                effect.location.c_str(), angle * kDegreesPerRadian, along, estimate->is_impact ? "impacts" : "sensors", declared,
+                estimate->residual_share, estimate->angle_rad * kDegreesPerRadian);
+}
+
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz,
+                               const std::vector<measurement::ChannelDirectionEstimate>& directions) {
   double stack_kg = 0.0;
   for (const auto& b : baseline.bodies) stack_kg += b.mass_kg;
   const model::EffectDefinition& definition = model::FindEffectDefinition(effect.name);
@@ -313,6 +360,7 @@ std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Ef
   if (definition.implausible) {
     if (std::string why = definition.implausible(effect); !why.empty()) return why;
   }
+  if (std::string why = TurnAgainstTheChannels(baseline, effect, directions); !why.empty()) return why;
   const std::vector<ParameterAtBound> at_bounds = ParametersAtBounds(baseline, effect);
   if (at_bounds.empty()) return {};
   const ParameterAtBound& p = at_bounds[0];
@@ -1165,8 +1213,11 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
     refit_the_baseline_from_the_leader();
   }
   // Physically absurd fits are not claimed (they are kept in the list, marked, after those that help).
+  const std::vector<measurement::ChannelDirectionEstimate> directions =
+      ChannelDirectionsUnder(summary.baseline, measurement, comparison.frame_origin_W(), options.comparison.fmin_hz,
+                             options.comparison.fmax_hz);
   for (auto& c : unique) {
-    c.implausible = ImplausibleBecause(summary.baseline, c.effect, comparison.frequency_hz()(0));
+    c.implausible = ImplausibleBecause(summary.baseline, c.effect, comparison.frequency_hz()(0), directions);
     if (!c.implausible.empty()) c.helps = false;
   }
   std::stable_partition(unique.begin(), unique.end(), [](const Candidate& c) { return c.helps; });

@@ -233,8 +233,9 @@ std::string Conclusion(const LoopSummary& summary, const compare::Comparison& co
     for (size_t k = 0; k < summary.implausible_effects.size(); ++k) {
       text += (k ? "; " : "") + summary.implausible_effects[k];
     }
-    return text + ". A value at the bound of its range is where a fit stopped, not what the stage holds: the effect may stand in "
-                  "for something else (check the channel or part it names), and the model is kept as the best the loop found.";
+    return text + ". Such a value is not what the stage holds (a value at the bound of its range is where a fit stopped): the "
+                  "effect may stand in for something else (check the channel or part it names), and the model is kept as the best "
+                  "the loop found.";
   }
   if (summary.confirmed) {
     std::snprintf(line, sizeof line, "The model ends at the noise floor (%.2f x %.4f)", times, summary.noise_floor.floor);
@@ -474,14 +475,20 @@ bool TriedCandidateEarnsPlace(double error_before, double error_after, const mod
   return DeltaBic(error_after, error_before, k, num_residuals) < 0;
 }
 
-std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_given, const model::ModelSpec& final, double band_low_hz) {
+std::vector<std::string> ImplausibleAddedEffects(
+    const model::ModelSpec& as_given, const model::ModelSpec& final, double band_low_hz,
+    const std::function<std::vector<measurement::ChannelDirectionEstimate>(const model::ModelSpec&)>& directions_under) {
   std::vector<std::string> found;
   for (size_t k = as_given.effects.size(); k < final.effects.size(); ++k) {
     model::ModelSpec without = final;
     std::vector<model::Effect> others = final.effects;
     others.erase(others.begin() + static_cast<long>(k));
     model::SetEffects(without, others);
-    const std::string why = ImplausibleBecause(without, final.effects[k], band_low_hz);
+    const bool measured_side = model::FindEffectDefinition(final.effects[k].name).measured_side_only;
+    const std::string why = ImplausibleBecause(without, final.effects[k], band_low_hz,
+                                               measured_side && directions_under
+                                                   ? directions_under(without)
+                                                   : std::vector<measurement::ChannelDirectionEstimate>{});
     if (!why.empty()) found.push_back(Key(final.effects[k]) + ": " + why);
   }
   return found;
@@ -1267,7 +1274,10 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       // took the offset, 1.05x -> 1.02x, 0.0097 -> 0.0022 from the noise-free truth).
       if (!taken.empty()) merge();
     }
-    summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0));
+    summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0), [&](const model::ModelSpec& m) {
+      return ChannelDirectionsUnder(m, measurement, comparison.frame_origin_W(), options.diagnose.comparison.fmin_hz,
+                                    options.diagnose.comparison.fmax_hz);
+    });
   };
   finish();
   // At the floor with a length or turn at the bound of its range: the effect stands in for something

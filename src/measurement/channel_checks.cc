@@ -536,14 +536,16 @@ ChannelCheckResult CheckChannels(const FrfData& raw, const Eigen::Vector3d& p_WX
   }
   result.checked = true;
   Checker ch{raw, raw.frame_origin_W.value_or(p_WXo), options, {}, {}};
-  for (const auto& b :
-       MakeFractionalOctaveBands(raw.frequency_hz(0), raw.frequency_hz(raw.num_frequencies() - 1), 3)) {
+  const std::vector<FrequencyBand> bands =
+      MakeFractionalOctaveBands(raw.frequency_hz(0), raw.frequency_hz(raw.num_frequencies() - 1), 3);
+  const std::vector<int> band_of = BandOfEachFrequency(raw.frequency_hz, bands);
+  for (size_t b = 0; b < bands.size(); ++b) {
     std::vector<int> fs;
-    for (int k = 0; k < raw.num_frequencies(); ++k)
-      if (raw.frequency_hz(k) >= b.low_hz && raw.frequency_hz(k) < b.high_hz) fs.push_back(k);
-    if (raw.frequency_hz(raw.num_frequencies() - 1) == b.high_hz) fs.push_back(raw.num_frequencies() - 1);
+    for (int k = 0; k < raw.num_frequencies(); ++k) {
+      if (band_of[static_cast<size_t>(k)] == static_cast<int>(b)) fs.push_back(k);
+    }
     if (fs.empty()) continue;
-    ch.bands.push_back(b);
+    ch.bands.push_back(bands[b]);
     ch.band_freqs.push_back(fs);
   }
   std::vector<std::string> notes;

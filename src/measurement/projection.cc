@@ -313,6 +313,20 @@ std::vector<FrequencyBand> MakeFractionalOctaveBands(double min_hz, double max_h
   return bands;
 }
 
+std::vector<int> BandOfEachFrequency(const Eigen::VectorXd& frequency_hz, const std::vector<FrequencyBand>& bands) {
+  std::vector<int> band_of(static_cast<size_t>(frequency_hz.size()), -1);
+  for (Eigen::Index k = 0; k < frequency_hz.size(); ++k) {
+    const double f = frequency_hz(k);
+    for (size_t b = 0; b < bands.size(); ++b) {
+      if (f >= bands[b].low_hz && (f < bands[b].high_hz || (b + 1 == bands.size() && f <= bands[b].high_hz))) {
+        band_of[static_cast<size_t>(k)] = static_cast<int>(b);
+        break;
+      }
+    }
+  }
+  return band_of;
+}
+
 std::string RigidConsistency::BriefReport() const {
   std::ostringstream s;
   s << "Rigid-body consistency (share of the data energy no rigid motion explains)\n";
@@ -464,6 +478,13 @@ Eigen::MatrixXd WithoutRow(const Eigen::MatrixXd& J, int skip) {
 
 }  // namespace
 
+double ChannelDirectionEstimate::ResidualShareAlong(const Eigen::Vector3d& direction_W) const {
+  // min_c sum |h - c u' a|^2 = energy - (u' rhs)^2 / (u' normal u).
+  const double uMu = direction_W.dot(normal * direction_W), ub = direction_W.dot(rhs);
+  if (!estimable || !(uMu > 0.0) || !(energy > 0.0)) return 1.0;
+  return std::max(0.0, 1.0 - ub * ub / (uMu * energy));
+}
+
 bool Observes6(const Eigen::MatrixXd& J) {
   if (J.rows() < 6) return false;
   const Eigen::VectorXd s = CalcSvd(J).values;
@@ -518,9 +539,10 @@ std::vector<ChannelDirectionEstimate> EstimateChannelDirections(const FrfData& r
       e.residual_share = 1.0;
       e.estimable = observable && !used.empty() && SolveDirection(M, b, h2, &e.estimated_W, &e.residual_share);
       if (e.estimable) {
-        // The share the declared direction leaves (its best scale fitted): min_c sum |h - c d' a|^2.
-        const double dMd = e.declared_W.dot(M * e.declared_W), db = e.declared_W.dot(b);
-        e.declared_residual_share = dMd > 0.0 ? std::max(0.0, 1.0 - db * db / (dMd * h2)) : 1.0;
+        e.normal = M;
+        e.rhs = b;
+        e.energy = h2;
+        e.declared_residual_share = e.ResidualShareAlong(e.declared_W);
       }
       e.angle_rad = std::atan2(e.declared_W.cross(e.estimated_W).norm(), e.declared_W.dot(e.estimated_W));
       estimates.push_back(e);

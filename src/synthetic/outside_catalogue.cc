@@ -205,13 +205,9 @@ OutsideCatalogueCase MakeOutsideCatalogueCase(const model::ModelSpec& nominal, u
   const std::vector<measurement::FrequencyBand> bands =
       measurement::MakeFractionalOctaveBands(with.frequency_hz.minCoeff(), with.frequency_hz.maxCoeff(), 3);
   Eigen::VectorXd per_band = Eigen::VectorXd::Zero(static_cast<int>(bands.size()));
+  const std::vector<int> band_of = measurement::BandOfEachFrequency(with.frequency_hz, bands);
   for (int k = 0; k < with.num_frequencies(); ++k) {
-    for (size_t b = 0; b < bands.size(); ++b) {
-      if (with.frequency_hz(k) >= bands[b].low_hz && (with.frequency_hz(k) < bands[b].high_hz || b + 1 == bands.size())) {
-        per_band(static_cast<int>(b)) += change[k].sum();
-        break;
-      }
-    }
+    if (band_of[static_cast<size_t>(k)] >= 0) per_band(band_of[static_cast<size_t>(k)]) += change[k].sum();
   }
   for (int b : HoldingHalf(per_band)) c.bands.push_back(bands[b]);
   static const char* kOutputs[6] = {"Dx", "Dy", "Dz", "Rx", "Ry", "Rz"};

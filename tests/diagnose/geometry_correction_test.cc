@@ -222,6 +222,9 @@ TEST(GeometryCorrection, OtherChannelsGiveEveryChannelsDirection) {
     for (const auto& e : estimates) {
       SCOPED_TRACE(e.name);
       EXPECT_TRUE(e.estimable);
+      // The shares of the estimate and of the declared direction are the problem's along each.
+      EXPECT_NEAR(e.ResidualShareAlong(e.estimated_W), e.residual_share, 1e-9);
+      EXPECT_NEAR(e.ResidualShareAlong(-2.0 * e.declared_W), e.declared_residual_share, 1e-9);
       if (e.name == declared.name && e.is_impact == impact) {
         EXPECT_LT((e.estimated_W - truth).norm(), 1e-8);
         EXPECT_NEAR(e.angle_rad, std::acos(truth.dot(declared.direction_W)), 1e-8);

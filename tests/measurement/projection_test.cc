@@ -303,6 +303,15 @@ TEST(MakeFractionalOctaveBands, CoversTheRangeWithNominalCentres) {
   EXPECT_THROW(MakeFractionalOctaveBands(0.0, 10.0, 3), InputError);
 }
 
+TEST(BandOfEachFrequency, HalfOpenBandsWithTheLastClosed) {
+  const std::vector<FrequencyBand> bands = {{10.0, 20.0}, {20.0, 40.0}};
+  Eigen::VectorXd f(7);
+  f << 5.0, 10.0, 19.999, 20.0, 39.999, 40.0, 40.001;
+  const std::vector<int> expected = {-1, 0, 0, 1, 1, 1, -1};
+  EXPECT_EQ(BandOfEachFrequency(f, bands), expected);
+  EXPECT_EQ(BandOfEachFrequency(f, {}), std::vector<int>(7, -1));
+}
+
 TEST(CalcRigidConsistency, IsZeroForRigidData) {
   const Synthetic s = MakeRigidData(SpecSensors(), 11u);
   const RigidConsistency c = CalcRigidConsistency(s.raw, kOrigin);

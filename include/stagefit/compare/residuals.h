@@ -132,6 +132,12 @@ struct DefaultSpace {
 };
 DefaultSpace ChooseDefaultSpace(const measurement::FrfData& measurement);
 
+/// `measurement` with its channels moved and turned as `corrections` say (a model's sensor-geometry
+/// effects, model::GeometryCorrection): where the comparison takes them to be. A correction naming no
+/// channel of the measurement changes nothing.
+measurement::FrfData WithGeometryCorrections(const measurement::FrfData& measurement,
+                                             const std::vector<model::GeometryCorrection>& corrections);
+
 /// Default significance threshold on kappa (header): 0.1 = -20 dB below the reference elements.
 inline constexpr double kDefaultSignificanceThreshold = 0.1;
 /// Default cap of the coherence-derived weight: SNR 30 (gamma^2 = 0.9989) is already a clean point;
@@ -431,7 +437,6 @@ class Comparison {
   std::vector<std::string> output_names_, input_names_;
   std::vector<Eigen::MatrixXcd> measured_;
   std::vector<Eigen::MatrixXd> weights_;
-  std::vector<Eigen::MatrixXd> snr_;  // uncapped SNR of every point (infinite: noise-free)
   Eigen::MatrixXd significance_;
   std::vector<ElementIndex> used_elements_;
   std::vector<Point> points_;
@@ -461,7 +466,8 @@ class Comparison {
   // copies; none without raw channels.
   struct RawStacked {
     Eigen::MatrixXd re, im, noise_var;  // noise_var empty without coherence
-    Eigen::Index num_inputs = 0, num_frequencies = 0;
+    Eigen::Index num_inputs = 0;
+    Eigen::Index num_frequencies() const { return num_inputs > 0 ? re.cols() / num_inputs : 0; }
     // From the data per frequency (`noise_var` empty or one per frequency); null when `raw` is empty.
     static std::shared_ptr<const RawStacked> Stack(const std::vector<Eigen::MatrixXcd>& raw,
                                                    const std::vector<Eigen::MatrixXd>& noise_var);
@@ -469,10 +475,10 @@ class Comparison {
     std::shared_ptr<const RawStacked> OnFrequencies(const std::vector<int>& kept) const;
   };
   std::shared_ptr<const RawStacked> raw_;
-  // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout): column k of `out` is
-  // vec(P H_k Q) (P.rows() x Q.cols(), column-major).
+  // Each frequency's P H_k Q from a stacked part of H (RawStacked's layout, Q.rows() inputs per
+  // frequency): column k of `out` is vec(P H_k Q) (P.rows() x Q.cols(), column-major).
   static void ProjectStacked(const Eigen::MatrixXd& P, const Eigen::MatrixXd& stacked, const Eigen::MatrixXd& Q,
-                             Eigen::Index num_frequencies, Eigen::MatrixXd* out);
+                             Eigen::MatrixXd* out);
   double weight_cap_ = kDefaultCoherenceWeightCap;
   double min_element_snr_ = 0.0;  // ComparisonOptions::min_element_snr, applied again when re-projected
   // A comparison on some of its frequencies (OnFrequencies()): the whole one, which decides the

@@ -162,8 +162,42 @@ inline double JudgedError(const Candidate& c) { return c.error_after / c.floor_r
 /// stands still, so its fitted mass is not determined and its joint acts as a spring to the ground (a
 /// cable between the granite and the hexapod was fitted as a 1078 kg body with a local mode at 1.3 Hz);
 /// or what the effect's own catalogue entry finds absurd (model::EffectDefinition::implausible: a loss
-/// factor that leaves its joint undamped).
-std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0);
+/// factor that leaves its joint undamped); or a channel's correction that turns the channel against
+/// what the measurement's own channels say (TurnAgainstTheChannels(), with `directions` of the
+/// measurement under `baseline`'s corrections, ChannelDirectionsUnder(); empty: not checked).
+std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0,
+                               const std::vector<measurement::ChannelDirectionEstimate>& directions = {});
+
+/// The directions of `measurement`'s channels as the other channels' rigid-body motion gives them
+/// (measurement::EstimateChannelDirections, no model involved; frame origin `p_WXo` unless the data
+/// carry one, frequencies in [fmin_hz, fmax_hz]), with `spec`'s geometry corrections applied to the
+/// declared geometry first: what the channels say under the corrections the model already makes.
+/// Empty when the measurement has no raw channels with geometry (one given already projected).
+std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(const model::ModelSpec& spec,
+                                                                          const measurement::FrfData& measurement,
+                                                                          const Eigen::Vector3d& p_WXo, double fmin_hz,
+                                                                          double fmax_hz);
+
+/// A turned direction is taken as against the channels when it leaves more than this many times the
+/// share of the channel's readings that its declared direction leaves unexplained by the other
+/// channels' rigid motion (ChannelDirectionEstimate::ResidualShareAlong). The same factor as
+/// measurement::kRivalResidualRatio, by which a channel's declared direction must be worse than its
+/// estimate for the channel to be named turned.
+inline constexpr double kTurnAgainstChannelsRatio = 2.0;
+
+/// Why `effect`, a correction of the measured side (model::EffectDefinition::measured_side_only)
+/// applied to `baseline`, turns its channel against the measurement's own evidence, or empty: the
+/// corrected direction leaves more than kTurnAgainstChannelsRatio times the declared direction's
+/// residual share in `directions` (the measurement under `baseline`'s corrections,
+/// ChannelDirectionsUnder()). Where the other channels hardly tell the channel's direction (a flat
+/// valley: the declared and the turned directions leave alike), nothing is found. Empty for an effect
+/// of the model's side, a channel without an estimable direction, or no turn. Seed 83792 of eval_loop
+/// (a payload and the hexapod's stiffness centre 64 mm off, noise per sensor channel): impact h10
+/// turned 30 degrees took the place of the offset at 1.05x the noise floor, 0.033 off the noise-free
+/// truth, while h10's own readings, against the other impacts' rigid motion, had the declared
+/// direction right.
+std::string TurnAgainstTheChannels(const model::ModelSpec& baseline, const model::Effect& effect,
+                                   const std::vector<measurement::ChannelDirectionEstimate>& directions);
 
 /// The length and angle parameters of `effect` a fit sets that lie within 1 % of the bound of their
 /// search range on `baseline` (the check of ImplausibleBecause()), in catalogue order, with that range.

@@ -467,9 +467,12 @@ bool TriedCandidateEarnsPlace(double error_before, double error_after, const mod
                               const std::vector<model::Effect>& removed, double num_residuals, double round_threshold);
 
 /// The effects of `final` after those of `as_given` (the ones the loop added) that ImplausibleBecause()
-/// finds absurd, each checked against `final` without it: "<effect>@<location>: why".
-std::vector<std::string> ImplausibleAddedEffects(const model::ModelSpec& as_given, const model::ModelSpec& final,
-                                                 double band_low_hz);
+/// finds absurd, each checked against `final` without it: "<effect>@<location>: why". A correction of
+/// the measured side is checked against the channels' own directions under the model without it
+/// (`directions_under`, ChannelDirectionsUnder() of the loop's measurement; empty: not checked).
+std::vector<std::string> ImplausibleAddedEffects(
+    const model::ModelSpec& as_given, const model::ModelSpec& final, double band_low_hz,
+    const std::function<std::vector<measurement::ChannelDirectionEstimate>(const model::ModelSpec&)>& directions_under = {});
 
 /// `step,action,effect,error,noise_floor,times_floor` (header first; empty noise fields when the
 /// floor is unknown), one row per step.

@@ -117,6 +117,11 @@ struct FrequencyBand {
 std::vector<FrequencyBand> MakeFractionalOctaveBands(double min_hz, double max_hz,
                                                      int bands_per_octave);
 
+/// The index into `bands` (increasing, as MakeFractionalOctaveBands() gives them) of the band that
+/// holds each of `frequency_hz`: [low_hz, high_hz), the last band closed at its high edge; -1 for a
+/// frequency in none.
+std::vector<int> BandOfEachFrequency(const Eigen::VectorXd& frequency_hz, const std::vector<FrequencyBand>& bands);
+
 /// How well a rigid body explains raw data, per channel and band (see CalcRigidConsistency()).
 struct RigidConsistency {
   std::vector<FrequencyBand> bands;        ///< Nb bands (only bands holding frequencies)
@@ -171,6 +176,15 @@ struct ChannelDirectionEstimate {
   /// The same share left by the declared direction (its gain fitted): what freeing the direction
   /// explains is declared_residual_share - residual_share.
   double declared_residual_share = 0.0;
+  /// The least-squares problem of the estimate, sum |h - d' a|^2 = d' normal d - 2 rhs' d + energy
+  /// (zero when not estimable).
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  double energy = 0.0;
+  /// The share of the channel's energy that `direction_W` leaves with its best gain fitted (the
+  /// declared direction's is declared_residual_share, the estimate's residual_share); 1 when not
+  /// estimable or for a zero direction.
+  double ResidualShareAlong(const Eigen::Vector3d& direction_W) const;
 };
 
 /// Model-free estimate of every channel's direction from raw FRFs of one rigid body. For sensor i the
