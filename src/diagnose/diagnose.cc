@@ -330,11 +330,11 @@ std::string TurnAgainstTheChannels(const model::ModelSpec& baseline, const model
   const double declared = estimate->declared_residual_share, along = estimate->ResidualShareAlong(turned);
   if (!(along > kTurnAgainstChannelsRatio * declared)) return {};
   const double angle = std::atan2(before->cross(*after).norm(), before->dot(*after));
-  return FormatText("it turns %s by %.1f deg, which leaves %.3g of its readings unexplained by the other %s' rigid motion against %.3g "
-                "as declared (%.3g with the direction they give it, %.1f deg from the declared): the channels say it is not "
-                "turned so",
-                effect.location.c_str(), angle * kDegreesPerRadian, along, estimate->is_impact ? "impacts" : "sensors", declared,
-                estimate->residual_share, estimate->angle_rad * kDegreesPerRadian);
+  return FormatText("it turns %s by %.1f deg, which leaves %.3g of its readings unexplained by the other %s' rigid motion against "
+                    "%.3g as declared (%.3g with the direction they give it, %.1f deg from the declared): the channels say it is not "
+                    "turned so",
+                    effect.location.c_str(), angle * kDegreesPerRadian, along, estimate->is_impact ? "impacts" : "sensors", declared,
+                    estimate->residual_share, estimate->angle_rad * kDegreesPerRadian);
 }
 
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz,
