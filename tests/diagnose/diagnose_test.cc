@@ -259,8 +259,6 @@ TEST(ImplausibleBecause, ABodyThatStandsStillInTheBand) {
   EXPECT_EQ(ImplausibleBecause(nominal, body, 5.0), "");
 }
 
-// A search on a thinned grid, and a screening on a coarser one still: every candidate is scored on
-// all frequencies, and the results agree with a search on all of them.
 // A channel's correction against what the channels themselves say (no model involved): on effect-free
 // data of eval_loop's generator (seed 45014, 600 Hz, 786 points, 1-3 % noise) an impact or a sensor
 // turned 20 degrees leaves many times the residual of its declared direction against the other
@@ -312,6 +310,8 @@ TEST(TurnAgainstTheChannels, ATurnTheOtherChannelsDoNotSee) {
   EXPECT_LT(a3z->angle_rad, 2 * M_PI / 180);
 }
 
+// A search on a thinned grid, and a screening on a coarser one still: every candidate is scored on
+// all frequencies, and the results agree with a search on all of them.
 TEST(Diagnose, SearchesOnAThinnedGridAndScoresOnAllFrequencies) {
   const model::ModelSpec nominal = model::DefaultModelSpec();
   synthetic::HiddenEffectOptions hidden;

@@ -509,6 +509,33 @@ TEST(ImplausibleAddedEffects, ListsAnAddedEffectAtItsBoundOnly) {
   EXPECT_TRUE(ImplausibleAddedEffects(final, final, 5.0).empty());
 }
 
+// The loop's last check asks the channels too: an impact's turn the other impacts' rigid motion does not
+// see (effect-free data of eval_loop's generator, seed 45014) is listed, checked under the model without
+// it, and a sensor correction it does not contradict beside it is not; without the channels' directions
+// nothing is checked.
+TEST(ImplausibleAddedEffects, ListsATurnTheChannelsDoNotSee) {
+  const model::ModelSpec nominal = model::DefaultModelSpec();
+  synthetic::HiddenEffectOptions options = synthetic::EvalLoopCaseOptions(0, 600, 786);
+  options.visibility_against_no_effect = true;
+  const auto sound = synthetic::MakeHiddenEffectCase(nominal, 45014, options);
+  const Eigen::Vector3d X = compare::Comparison::Create(nominal, sound.measurement).frame_origin_W();
+  model::ModelSpec final = nominal;
+  model::ApplyEffect(final, model::ParseEffect("sensor-geometry@h10:rz=20 deg", final));
+  model::ApplyEffect(final, model::ParseEffect("sensor-geometry@a2y:dx=0.01", final));
+  int calls = 0;
+  const auto directions_under = [&](const model::ModelSpec& without) {
+    ++calls;
+    EXPECT_EQ(without.effects.size(), 1u);
+    return ChannelDirectionsUnder(without, sound.measurement, X, 0.0, std::numeric_limits<double>::infinity());
+  };
+  const std::vector<std::string> found = ImplausibleAddedEffects(nominal, final, 5.0, directions_under);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].rfind("sensor-geometry@h10: it turns h10 by 20.0 deg", 0), 0u) << found[0];
+  EXPECT_NE(found[0].find("the channels say it is not turned so"), std::string::npos) << found[0];
+  EXPECT_EQ(calls, 2);
+  EXPECT_TRUE(ImplausibleAddedEffects(nominal, final, 5.0).empty());
+}
+
 // A channel's correction with its offset at the bound of its range (a2x of seed 7006, truly turned 16
 // degrees about z, given dy = 5 cm and no turn): the offset is held at none and the turn where the
 // other channels' rigid motion sees the channel; the refit from both starts leaves every held value
