@@ -291,12 +291,11 @@ std::string ChannelWords(const std::vector<ChannelError>& channels) {
   return text;
 }
 
-std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(const model::ModelSpec& spec,
-                                                                          const measurement::FrfData& measurement,
-                                                                          const Eigen::Vector3d& p_WXo, double fmin_hz,
-                                                                          double fmax_hz) {
+std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(
+    const std::vector<model::GeometryCorrection>& corrections, const measurement::FrfData& measurement,
+    const Eigen::Vector3d& p_WXo, double fmin_hz, double fmax_hz) {
   try {
-    return measurement::EstimateChannelDirections(compare::WithGeometryCorrections(measurement, spec.geometry_corrections), p_WXo,
+    return measurement::EstimateChannelDirections(compare::WithGeometryCorrections(measurement, corrections), p_WXo,
                                                   fmin_hz, fmax_hz);
   } catch (const InputError&) {
     return {};  // no raw channels with geometry: nothing to say
@@ -442,24 +441,17 @@ bool IsImpact(const measurement::FrfData& data, const std::string& channel) {
 }
 
 /// The turn of each channel (Euler XYZ angles, as a sensor-geometry correction holds them) that takes
-/// its declared direction to the one the other channels' rigid-body motion gives it
-/// (measurement::EstimateChannelDirections); empty when the data carry no channel geometry.
+/// its declared direction to the one the other channels' rigid-body motion gives it (`estimates`,
+/// measurement::EstimateChannelDirections); empty when the data carry no channel geometry.
 struct ChannelTurn {
   Eigen::Vector3d euler_rad;
   double angle_rad = 0;
   double residual_share = 0;  ///< ChannelDirectionEstimate::residual_share
 };
-std::map<std::string, ChannelTurn> EstimateChannelTurns(const measurement::FrfData& data,
-                                                        const compare::Comparison& comparison, double fmin_hz,
-                                                        double fmax_hz) {
+std::map<std::string, ChannelTurn> EstimateChannelTurns(const std::vector<measurement::ChannelDirectionEstimate>& estimates,
+                                                        const compare::Comparison& comparison) {
   std::map<std::string, ChannelTurn> turns;
   if (comparison.CorrectableChannels().empty()) return turns;
-  std::vector<measurement::ChannelDirectionEstimate> estimates;
-  try {
-    estimates = measurement::EstimateChannelDirections(data, comparison.frame_origin_W(), fmin_hz, fmax_hz);
-  } catch (const InputError&) {
-    return turns;
-  }
   for (const auto& e : estimates) {
     if (const auto euler = CalcChannelTurn(e)) turns[e.name] = {*euler, e.angle_rad, e.residual_share};
   }
@@ -603,7 +595,13 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   // sensor-geometry at every channel, started from its direction as the other channels see it).
   AddRigidConsistency(measurement, comparison, spec, &summary);
   const std::vector<std::string> channels = comparison.CorrectableChannels();
-  const auto turns = EstimateChannelTurns(measurement, comparison, options.comparison.fmin_hz, options.comparison.fmax_hz);
+  // The channels' directions as the data declare them (no model involved): the candidates' starting
+  // turns here, and the check of the leaders' turns at the end (TurnAgainstTheChannels) unless the model
+  // corrects some channels already.
+  const std::vector<measurement::ChannelDirectionEstimate> declared_directions =
+      ChannelDirectionsUnder({}, measurement, comparison.frame_origin_W(), options.comparison.fmin_hz,
+                             options.comparison.fmax_hz);
+  const auto turns = EstimateChannelTurns(declared_directions, comparison);
   for (const auto& [channel, turn] : turns) {
     if (turn.angle_rad > kMinEstimatedTurn) {
       summary.turned_channels.push_back({channel, turn.angle_rad * kDegreesPerRadian, turn.residual_share});
@@ -1214,8 +1212,10 @@ DiagnoseSummary Diagnose(const model::ModelSpec& spec, const measurement::FrfDat
   }
   // Physically absurd fits are not claimed (they are kept in the list, marked, after those that help).
   const std::vector<measurement::ChannelDirectionEstimate> directions =
-      ChannelDirectionsUnder(summary.baseline, measurement, comparison.frame_origin_W(), options.comparison.fmin_hz,
-                             options.comparison.fmax_hz);
+      summary.baseline.geometry_corrections.empty()
+          ? declared_directions
+          : ChannelDirectionsUnder(summary.baseline.geometry_corrections, measurement, comparison.frame_origin_W(),
+                                   options.comparison.fmin_hz, options.comparison.fmax_hz);
   for (auto& c : unique) {
     c.implausible = ImplausibleBecause(summary.baseline, c.effect, comparison.frequency_hz()(0), directions);
     if (!c.implausible.empty()) c.helps = false;

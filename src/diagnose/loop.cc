@@ -1275,7 +1275,7 @@ LoopSummary RunLoop(const model::ModelSpec& spec, const measurement::FrfData& me
       if (!taken.empty()) merge();
     }
     summary.implausible_effects = ImplausibleAddedEffects(spec, current, comparison.frequency_hz()(0), [&](const model::ModelSpec& m) {
-      return ChannelDirectionsUnder(m, measurement, comparison.frame_origin_W(), options.diagnose.comparison.fmin_hz,
+      return ChannelDirectionsUnder(m.geometry_corrections, measurement, comparison.frame_origin_W(), options.diagnose.comparison.fmin_hz,
                                     options.diagnose.comparison.fmax_hz);
     });
   };

@@ -275,7 +275,8 @@ TEST(TurnAgainstTheChannels, ATurnTheOtherChannelsDoNotSee) {
   const auto sound = make(45014, 0, 600, 786);
   ASSERT_TRUE(sound.effects.empty());
   const Eigen::Vector3d X = compare::Comparison::Create(nominal, sound.measurement).frame_origin_W();
-  const auto directions = ChannelDirectionsUnder(nominal, sound.measurement, X, 0.0, std::numeric_limits<double>::infinity());
+  const double all = std::numeric_limits<double>::infinity();
+  const auto directions = ChannelDirectionsUnder(nominal.geometry_corrections, sound.measurement, X, 0.0, all);
   ASSERT_EQ(directions.size(), sound.measurement.outputs.size() + sound.measurement.inputs.size());
   for (const char* text : {"sensor-geometry@h10:rz=20 deg", "sensor-geometry@a2z:ry=20 deg", "sensor-geometry@a1x:rz=-20 deg"}) {
     SCOPED_TRACE(text);
@@ -290,7 +291,7 @@ TEST(TurnAgainstTheChannels, ATurnTheOtherChannelsDoNotSee) {
   }
   measurement::FrfData projected = sound.measurement;
   for (auto& c : projected.outputs) c = measurement::ChannelGeometry{c.name};
-  EXPECT_TRUE(ChannelDirectionsUnder(nominal, projected, X, 0.0, std::numeric_limits<double>::infinity()).empty());
+  EXPECT_TRUE(ChannelDirectionsUnder(nominal.geometry_corrections, projected, X, 0.0, all).empty());
 
   const auto turned = make(60040, 3, 150, 323);
   ASSERT_EQ(turned.truth.geometry_corrections.size(), 1u);
@@ -300,11 +301,11 @@ TEST(TurnAgainstTheChannels, ATurnTheOtherChannelsDoNotSee) {
   std::snprintf(text, sizeof text, "sensor-geometry@a3z:rx=%.17g,ry=%.17g,rz=%.17g", g.rotation_rad(0), g.rotation_rad(1),
                 g.rotation_rad(2));
   const model::Effect right = model::ParseEffect(text, nominal);
-  const auto as_declared = ChannelDirectionsUnder(nominal, turned.measurement, X, 0.0, std::numeric_limits<double>::infinity());
+  const auto as_declared = ChannelDirectionsUnder(nominal.geometry_corrections, turned.measurement, X, 0.0, all);
   EXPECT_EQ(TurnAgainstTheChannels(nominal, right, as_declared), "");
   model::ModelSpec corrected = nominal;
   model::ApplyEffect(corrected, right);
-  const auto under = ChannelDirectionsUnder(corrected, turned.measurement, X, 0.0, std::numeric_limits<double>::infinity());
+  const auto under = ChannelDirectionsUnder(corrected.geometry_corrections, turned.measurement, X, 0.0, all);
   const auto a3z = std::find_if(under.begin(), under.end(), [](const auto& d) { return d.name == "a3z"; });
   ASSERT_NE(a3z, under.end());
   EXPECT_LT(a3z->angle_rad, 2 * M_PI / 180);

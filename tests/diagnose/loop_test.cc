@@ -526,7 +526,7 @@ TEST(ImplausibleAddedEffects, ListsATurnTheChannelsDoNotSee) {
   const auto directions_under = [&](const model::ModelSpec& without) {
     ++calls;
     EXPECT_EQ(without.effects.size(), 1u);
-    return ChannelDirectionsUnder(without, sound.measurement, X, 0.0, std::numeric_limits<double>::infinity());
+    return ChannelDirectionsUnder(without.geometry_corrections, sound.measurement, X, 0.0, std::numeric_limits<double>::infinity());
   };
   const std::vector<std::string> found = ImplausibleAddedEffects(nominal, final, 5.0, directions_under);
   ASSERT_EQ(found.size(), 1u);

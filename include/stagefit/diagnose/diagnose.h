@@ -164,19 +164,19 @@ inline double JudgedError(const Candidate& c) { return c.error_after / c.floor_r
 /// or what the effect's own catalogue entry finds absurd (model::EffectDefinition::implausible: a loss
 /// factor that leaves its joint undamped); or a channel's correction that turns the channel against
 /// what the measurement's own channels say (TurnAgainstTheChannels(), with `directions` of the
-/// measurement under `baseline`'s corrections, ChannelDirectionsUnder(); empty: not checked).
+/// measurement under `baseline`'s geometry corrections, ChannelDirectionsUnder(); empty: not checked).
 std::string ImplausibleBecause(const model::ModelSpec& baseline, const model::Effect& effect, double band_low_hz = 0,
                                const std::vector<measurement::ChannelDirectionEstimate>& directions = {});
 
 /// The directions of `measurement`'s channels as the other channels' rigid-body motion gives them
 /// (measurement::EstimateChannelDirections, no model involved; frame origin `p_WXo` unless the data
-/// carry one, frequencies in [fmin_hz, fmax_hz]), with `spec`'s geometry corrections applied to the
-/// declared geometry first: what the channels say under the corrections the model already makes.
-/// Empty when the measurement has no raw channels with geometry (one given already projected).
-std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(const model::ModelSpec& spec,
-                                                                          const measurement::FrfData& measurement,
-                                                                          const Eigen::Vector3d& p_WXo, double fmin_hz,
-                                                                          double fmax_hz);
+/// carry one, frequencies in [fmin_hz, fmax_hz]), with `corrections` (a model's geometry corrections)
+/// applied to the declared geometry first: what the channels say under the corrections the model
+/// already makes. Empty when the measurement has no raw channels with geometry (one given already
+/// projected).
+std::vector<measurement::ChannelDirectionEstimate> ChannelDirectionsUnder(
+    const std::vector<model::GeometryCorrection>& corrections, const measurement::FrfData& measurement,
+    const Eigen::Vector3d& p_WXo, double fmin_hz, double fmax_hz);
 
 /// A turned direction is taken as against the channels when it leaves more than this many times the
 /// share of the channel's readings that its declared direction leaves unexplained by the other
@@ -188,7 +188,7 @@ inline constexpr double kTurnAgainstChannelsRatio = 2.0;
 /// Why `effect`, a correction of the measured side (model::EffectDefinition::measured_side_only)
 /// applied to `baseline`, turns its channel against the measurement's own evidence, or empty: the
 /// corrected direction leaves more than kTurnAgainstChannelsRatio times the declared direction's
-/// residual share in `directions` (the measurement under `baseline`'s corrections,
+/// residual share in `directions` (the measurement under `baseline`'s geometry corrections,
 /// ChannelDirectionsUnder()). Where the other channels hardly tell the channel's direction (a flat
 /// valley: the declared and the turned directions leave alike), nothing is found. Empty for an effect
 /// of the model's side, a channel without an estimable direction, or no turn. Seed 83792 of eval_loop
