@@ -190,8 +190,9 @@ constexpr double kSearchGridMargin = 1.5;
 /// `current` with `effects` in place of its own (their parameters as they are) refitted on `search` (the
 /// loop's comparison thinned to DiagnoseOptions::max_search_frequencies) from two starts as the loop
 /// refits it (`current`'s state, and the model as given with `effects`; the better kept), its error
-/// there over `current`'s own error there. NaN when either cannot be evaluated: the decision is left to
-/// the refit on all frequencies.
+/// there over `current`'s own error there, each over its own noise floor where both are known (the two
+/// can correct different channels). NaN when either cannot be evaluated: the decision is left to the
+/// refit on all frequencies.
 double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
                               const model::ModelSpec& current, const std::vector<model::Effect>& effects);
 
@@ -200,7 +201,9 @@ double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::C
 /// (those of `current` after the effects of `as_given`) must still earn its place beside the later ones
 /// by the rule that added it (DiagnoseOptions::min_relative_improvement and delta BIC against the model
 /// without it). The model is refitted without it from `current`'s state and from the model as given
-/// (every remaining effect refitted with the model, FitEffects), the better kept; where the effect does
+/// (every remaining effect refitted with the model, FitEffects), the better kept, and its error put on
+/// `current`'s noise floor (without a channel's correction the measurement is weighed otherwise and
+/// its floor moves: the correction earns its place by what it explains); where the effect does
 /// not lower the error by that share it is dropped, unless `current` is within
 /// LoopOptions::rounds_above_times_floor of the noise floor with it and above that without it (near the
 /// floor no effect lowers the error by 5 %): `current` becomes the model without it and a
