@@ -328,6 +328,8 @@ std::vector<ChannelError> ConclusionChannels(const LoopSummary& summary) {
   return StandingOut(summary.final_channels);
 }
 
+namespace {
+
 /// `error`, the error of `model`, put on the noise floor of `reference` (compare::Comparison::CalcNoiseFloor
 /// of each): a channel's correction re-weighs the measurement and moves the floor, so the errors of models
 /// that correct different channels compare over their own floors, as TryCandidateBesideAddedEffects
@@ -338,6 +340,8 @@ double OnFloorOf(const compare::Comparison& comparison, const model::ModelSpec& 
   if (!own.known || !theirs.known || !(own.floor > 0) || !(theirs.floor > 0)) return error;
   return error * theirs.floor / own.floor;
 }
+
+}  // namespace
 
 double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::Comparison& search, const LoopOptions& options,
                               const model::ModelSpec& current, const std::vector<model::Effect>& effects) {

@@ -627,7 +627,7 @@ TEST(DropUnneededEffects, DropsAnEffectThatStoodInBesideACorrectionNowHeld) {
 
 // A channel's correction beside a later one is judged on the floor it leaves (seed 200055 of
 // eval_loop: a3z turned 17 degrees, 600 Hz, 818 frequencies). The loop's round tried impact h4's
-// correction beside a3z's held one: it lowers the error by 11 %, 1.07x -> 1.05x of each model's own
+// correction beside a3z's held one: it lowers the error by 11 %, 1.07x -> 1.04x of each model's own
 // floor, the rest by re-weighing the measurement (its floor 0.0306 against 0.0333). Put in the other
 // order, a3z's the newest, the check of the effects added before drops h4's: judged by the raw errors
 // it earned its place.
