@@ -333,9 +333,10 @@ namespace {
 /// `error`, the error of `model`, put on the noise floor of `reference` (compare::Comparison::CalcNoiseFloor
 /// of each): a channel's correction re-weighs the measurement and moves the floor, so the errors of models
 /// that correct different channels compare over their own floors, as TryCandidateBesideAddedEffects
-/// judges them. `error` as it is where either floor is unknown.
+/// judges them. `error` as it is where it is not finite (a failed fit) or either floor is unknown.
 double OnFloorOf(const compare::Comparison& comparison, const model::ModelSpec& reference, const model::ModelSpec& model,
                  double error) {
+  if (!std::isfinite(error)) return error;
   const compare::NoiseFloor own = comparison.CalcNoiseFloor(model), theirs = comparison.CalcNoiseFloor(reference);
   if (!own.known || !theirs.known || !(own.floor > 0) || !(theirs.floor > 0)) return error;
   return error * theirs.floor / own.floor;
@@ -347,7 +348,7 @@ double RefitRatioOnSearchGrid(const model::ModelSpec& as_given, const compare::C
                               const model::ModelSpec& current, const std::vector<model::Effect>& effects) {
   const double reference_error = search.Error(current);
   const auto [refit, raw_refit_error] = RefitWithEffects(as_given, search, options, current, effects);
-  const double refit_error = std::isfinite(raw_refit_error) ? OnFloorOf(search, current, refit, raw_refit_error) : raw_refit_error;
+  const double refit_error = OnFloorOf(search, current, refit, raw_refit_error);
   if (!std::isfinite(refit_error) || !std::isfinite(reference_error) || !(reference_error > 0)) {
     return std::numeric_limits<double>::quiet_NaN();
   }
@@ -393,8 +394,7 @@ std::vector<std::string> DropUnneededEffects(const model::ModelSpec& as_given, c
     // of the model with it (OnFloorOf), so the correction earns its place by what it explains, not by
     // the floor it moves.
     auto [trial, raw_trial_error] = RefitWithEffects(as_given, comparison, options, *current, without);
-    const double trial_error = std::isfinite(raw_trial_error) ? OnFloorOf(comparison, *current, trial, raw_trial_error)
-                                                              : raw_trial_error;
+    const double trial_error = OnFloorOf(comparison, *current, trial, raw_trial_error);
     const double delta_bic = DeltaBic(with_error, trial_error, num_parameters, n);
     // It also earns its place when the model is at the floor with it and would need another round
     // without it: near the floor no effect lowers the error by the share (a model at 1.07x can fall by
